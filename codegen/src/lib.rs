@@ -1,0 +1,32 @@
+//! softcbf-codegen: turns a robot's structure into the Rust source of its model.
+//!
+//! A small symbolic engine: a flat hash-consed [`expr::Arena`] whose constructors simplify,
+//! [`diff::Differentiator`] for derivatives of any order, [`program::schedule`] for common
+//! subexpressions, and [`emit`] writing Rust through syn/quote/prettyplease. The analytic
+//! functions `f_s`, `f_c` of MODEL.md §2 and their derivatives are nodes of their own,
+//! evaluated by [`analytic`]'s series-or-closed-form code. [`model`] builds the PCC
+//! kinematics, barriers and joint terms; [`robot`] reads robot files; [`layout`] fixes the
+//! runtime parameter vector.
+//!
+//! ```
+//! use softcbf_codegen::{expr::Arena, diff::Differentiator};
+//! let mut arena = Arena::new();
+//! let x = arena.symbol("x");
+//! let sin_x = arena.sin(x);
+//! let mut diff = Differentiator::new();
+//! let derivative = diff.derivative(&mut arena, sin_x, x);
+//! assert_eq!(derivative, arena.cos(x));
+//! ```
+
+pub mod analytic;
+pub mod diff;
+pub mod emit;
+pub mod expr;
+pub mod layout;
+pub mod model;
+pub mod program;
+pub mod robot;
+pub mod sexpr;
+
+pub use model::{GeneratedSource, generate};
+pub use robot::{Robot, RobotError, Structure};

@@ -1,0 +1,501 @@
+//! The robot model as symbolic expressions (MODEL.md §2–4) and its emission as a Rust file.
+//! Structure decides the code; every number is read from the parameter vector at run time.
+
+use proc_macro2::{Literal, TokenStream};
+use quote::{format_ident, quote};
+
+use crate::analytic;
+use crate::diff::{Differentiator, Tangent};
+use crate::emit::{FunctionSpec, emit_function, format_file};
+use crate::expr::{Arena, Id};
+use crate::layout::{Param, param_layout};
+use crate::program::OpCount;
+use crate::robot::Structure;
+
+/// Symbols and kinematic expressions of one module.
+struct ModuleExprs {
+    /// `q_i = [Δx, Δy, δL]`.
+    q: [Id; 3],
+    /// `q̇_i`.
+    qd: [Id; 3],
+    /// Rotation of the tip frame in the segment base frame, rows.
+    rotation: [[Id; 3]; 3],
+    /// Position of the tip-frame origin in the segment base frame.
+    translation: [Id; 3],
+    /// `c_ij`: height of each corner above the bottom plate's plane.
+    corner_heights: Vec<Id>,
+    /// `ε_ij`.
+    margins: Vec<Id>,
+}
+
+/// The symbolic model of a structure, ready to be emitted.
+pub struct SymbolicModel {
+    arena: Arena,
+    diff: Differentiator,
+    /// Time derivative along `q̇` (with `q̈ = 0`).
+    tangent: Tangent,
+    modules: Vec<ModuleExprs>,
+    /// `(symbol, index)` of every parameter.
+    params: Vec<(Id, usize)>,
+    param_names: Vec<String>,
+    structure: Structure,
+}
+
+/// Builds the symbolic kinematics of every module.
+pub fn build(structure: &Structure) -> SymbolicModel {
+    let mut arena = Arena::new();
+    let layout = param_layout(structure);
+    let mut params = Vec::with_capacity(layout.len());
+    let mut param_names = Vec::with_capacity(layout.len());
+    let mut symbol_of = std::collections::HashMap::new();
+    for (index, p) in layout.iter().enumerate() {
+        let id = arena.symbol(&p.name());
+        symbol_of.insert(p.name(), id);
+        params.push((id, index));
+        param_names.push(p.name());
+    }
+    let param = |p: Param| symbol_of[&p.name()];
+
+    let mut modules = Vec::new();
+    for (i, &corners) in structure.corners.iter().enumerate() {
+        let q = [
+            arena.symbol(&format!("dx_{i}")),
+            arena.symbol(&format!("dy_{i}")),
+            arena.symbol(&format!("dl_{i}")),
+        ];
+        let qd = [
+            arena.symbol(&format!("dx_dot_{i}")),
+            arena.symbol(&format!("dy_dot_{i}")),
+            arena.symbol(&format!("dl_dot_{i}")),
+        ];
+        let rest_length = param(Param::RestLength(i));
+        let tendon_radius = param(Param::TendonRadius(i));
+        let corner_radius = param(Param::CornerRadius(i));
+
+        // a = Δx/d, b = Δy/d, u = a² + b² = θ², L = L0 + δL.
+        let a = arena.div(q[0], tendon_radius);
+        let b = arena.div(q[1], tendon_radius);
+        let a2 = arena.powi(a, 2);
+        let b2 = arena.powi(b, 2);
+        let u = arena.add(a2, b2);
+        let length = arena.add(rest_length, q[2]);
+        let fs = arena.fs(u);
+        let fc = arena.fc(u);
+        let one = arena.constant(1.0);
+
+        let a_fc = arena.mul(a, fc);
+        let b_fc = arena.mul(b, fc);
+        let a_fs = arena.mul(a, fs);
+        let b_fs = arena.mul(b, fs);
+        let a2_fc = arena.mul(a2, fc);
+        let b2_fc = arena.mul(b2, fc);
+        let ab_fc = arena.mul(a, b_fc);
+        let u_fc = arena.mul(u, fc);
+        let r00 = arena.sub(one, a2_fc);
+        let r01 = arena.neg(ab_fc);
+        let r11 = arena.sub(one, b2_fc);
+        let r20 = arena.neg(a_fs);
+        let r21 = arena.neg(b_fs);
+        let r22 = arena.sub(one, u_fc);
+        let rotation = [[r00, r01, a_fs], [r01, r11, b_fs], [r20, r21, r22]];
+        let translation = [
+            arena.mul(length, a_fc),
+            arena.mul(length, b_fc),
+            arena.mul(length, fs),
+        ];
+
+        // c_ij = f_s(u) · (L − r (a cos φ_j + b sin φ_j))  (MODEL.md §3).
+        let mut corner_heights = Vec::with_capacity(corners);
+        let mut margins = Vec::with_capacity(corners);
+        for j in 0..corners {
+            let cos_phi = param(Param::CornerCos(i, j));
+            let sin_phi = param(Param::CornerSin(i, j));
+            let along_x = arena.mul(a, cos_phi);
+            let along_y = arena.mul(b, sin_phi);
+            let lever = arena.add(along_x, along_y);
+            let drop = arena.mul(corner_radius, lever);
+            let height = arena.sub(length, drop);
+            corner_heights.push(arena.mul(fs, height));
+            margins.push(param(Param::Margin(i, j)));
+        }
+        modules.push(ModuleExprs {
+            q,
+            qd,
+            rotation,
+            translation,
+            corner_heights,
+            margins,
+        });
+    }
+    let mut tangent = Tangent::new();
+    for m in &modules {
+        for k in 0..3 {
+            tangent.set_rate(m.q[k], m.qd[k]);
+        }
+    }
+    SymbolicModel {
+        arena,
+        diff: Differentiator::new(),
+        tangent,
+        modules,
+        params,
+        param_names,
+        structure: structure.clone(),
+    }
+}
+
+/// A generated model file and what it costs.
+pub struct GeneratedSource {
+    /// The formatted Rust source.
+    pub text: String,
+    /// Operation count of each emitted function.
+    pub ops: Vec<(String, OpCount)>,
+}
+
+impl SymbolicModel {
+    /// Number of generalized coordinates.
+    pub fn nq(&self) -> usize {
+        3 * self.modules.len()
+    }
+
+    /// Number of barriers.
+    pub fn nb(&self) -> usize {
+        self.modules.iter().map(|m| m.corner_heights.len()).sum()
+    }
+
+    /// The arena holding every expression.
+    pub fn arena(&self) -> &Arena {
+        &self.arena
+    }
+
+    fn bindings(&self, with_velocity: bool) -> Vec<(Id, TokenStream)> {
+        let mut inputs = Vec::new();
+        for &(id, index) in &self.params {
+            let index = Literal::usize_unsuffixed(index);
+            inputs.push((id, quote!(p[#index])));
+        }
+        for (i, m) in self.modules.iter().enumerate() {
+            for k in 0..3 {
+                let index = Literal::usize_unsuffixed(3 * i + k);
+                inputs.push((m.q[k], quote!(q[#index])));
+                if with_velocity {
+                    inputs.push((m.qd[k], quote!(qd[#index])));
+                }
+            }
+        }
+        inputs
+    }
+
+    /// Barrier values `b_ij = c_ij − ε_ij`, module-major, corner-minor.
+    pub fn barrier_exprs(&mut self) -> Vec<Id> {
+        let mut out = Vec::new();
+        for m in &self.modules {
+            for (&c, &eps) in m.corner_heights.iter().zip(&m.margins) {
+                out.push(self.arena.sub(c, eps));
+            }
+        }
+        out
+    }
+
+    /// For every barrier: value, gradient with respect to its module's `q_i` (the other
+    /// modules' entries are zero) and `q̇ᵀ ∇²b q̇`.
+    pub fn barrier_term_exprs(&mut self) -> Vec<(Id, usize, [Id; 3], Id)> {
+        let barriers = self.barrier_exprs();
+        let mut out = Vec::new();
+        let mut next = 0;
+        for (i, m) in self.modules.iter().enumerate() {
+            for _ in 0..m.corner_heights.len() {
+                let b = barriers[next];
+                next += 1;
+                let gradient = self.diff.gradient(&mut self.arena, b, &m.q);
+                let rate = self.tangent.tangent(&mut self.arena, b);
+                let jdot_qd = self.tangent.tangent(&mut self.arena, rate);
+                out.push((b, i, [gradient[0], gradient[1], gradient[2]], jdot_qd));
+            }
+        }
+        out
+    }
+
+    /// Joint quantities of module `i` for the recursive dynamics: the motion subspace `S`
+    /// (6×3, rows ω then v, tip coordinates) and `c_J = Ṡ q̇` (apparent derivative).
+    pub fn joint_exprs(&mut self, i: usize) -> ([[Id; 3]; 6], [Id; 6]) {
+        let m = &self.modules[i];
+        let (q, qd, rotation, translation) = (m.q, m.qd, m.rotation, m.translation);
+        let mut subspace = [[self.arena.constant(0.0); 3]; 6];
+        for (k, &coordinate) in q.iter().enumerate() {
+            let mut d_rotation = [[self.arena.constant(0.0); 3]; 3];
+            for r in 0..3 {
+                for c in 0..3 {
+                    d_rotation[r][c] =
+                        self.diff
+                            .derivative(&mut self.arena, rotation[r][c], coordinate);
+                }
+            }
+            // W = Rᵀ ∂R/∂q_k is skew; ω = vee(W) = (W₂₁, W₀₂, W₁₀).
+            let column = |arena: &mut Arena, row: usize, col: usize| -> Id {
+                let left: Vec<Id> = (0..3).map(|s| rotation[s][row]).collect();
+                let right: Vec<Id> = (0..3).map(|s| d_rotation[s][col]).collect();
+                arena.dot(&left, &right)
+            };
+            subspace[0][k] = column(&mut self.arena, 2, 1);
+            subspace[1][k] = column(&mut self.arena, 0, 2);
+            subspace[2][k] = column(&mut self.arena, 1, 0);
+            let d_translation: Vec<Id> = translation
+                .iter()
+                .map(|&t| self.diff.derivative(&mut self.arena, t, coordinate))
+                .collect();
+            for r in 0..3 {
+                let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
+                subspace[3 + r][k] = self.arena.dot(&left, &d_translation);
+            }
+        }
+        // Body twist V = S q̇ = [vee(Rᵀ Ṙ); Rᵀ ṫ] by forward-mode tangents, then c_J = V̇ at q̈ = 0.
+        let mut rotation_rate = [[self.arena.constant(0.0); 3]; 3];
+        for r in 0..3 {
+            for c in 0..3 {
+                rotation_rate[r][c] = self.tangent.tangent(&mut self.arena, rotation[r][c]);
+            }
+        }
+        let translation_rate: Vec<Id> = translation
+            .iter()
+            .map(|&t| self.tangent.tangent(&mut self.arena, t))
+            .collect();
+        let body = |arena: &mut Arena, row: usize, col: usize| -> Id {
+            let left: Vec<Id> = (0..3).map(|s| rotation[s][row]).collect();
+            let right: Vec<Id> = (0..3).map(|s| rotation_rate[s][col]).collect();
+            arena.dot(&left, &right)
+        };
+        let mut twist = [
+            body(&mut self.arena, 2, 1),
+            body(&mut self.arena, 0, 2),
+            body(&mut self.arena, 1, 0),
+            self.arena.constant(0.0),
+            self.arena.constant(0.0),
+            self.arena.constant(0.0),
+        ];
+        for r in 0..3 {
+            let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
+            twist[3 + r] = self.arena.dot(&left, &translation_rate);
+        }
+        let _ = qd;
+        let bias = twist.map(|v| self.tangent.tangent(&mut self.arena, v));
+        (subspace, bias)
+    }
+
+    /// Emits the whole model as one Rust source file (items only, to be `include!`d).
+    pub fn emit(&mut self, source_label: &str) -> GeneratedSource {
+        let n = Literal::usize_unsuffixed(self.modules.len());
+        let nq_value = self.nq();
+        let nq = Literal::usize_unsuffixed(nq_value);
+        let nb = Literal::usize_unsuffixed(self.nb());
+        let np = Literal::usize_unsuffixed(self.params.len());
+        let n_modules = self.modules.len();
+        let mut functions = Vec::new();
+        let mut ops = Vec::new();
+        let mut orders = std::collections::BTreeSet::new();
+        let mut push = |name: &str, emitted: crate::emit::Emitted| {
+            ops.push((name.to_string(), emitted.ops));
+            orders.extend(emitted.analytic_orders);
+            functions.push(emitted.tokens);
+        };
+
+        // Segment transforms T_i.
+        let mut outputs = Vec::new();
+        for (i, m) in self.modules.iter().enumerate() {
+            let i_lit = Literal::usize_unsuffixed(i);
+            for r in 0..3 {
+                let r_lit = Literal::usize_unsuffixed(r);
+                for c in 0..3 {
+                    let c_lit = Literal::usize_unsuffixed(c);
+                    outputs.push((quote!(transforms[#i_lit][#r_lit][#c_lit]), m.rotation[r][c]));
+                }
+                outputs.push((quote!(transforms[#i_lit][#r_lit][3]), m.translation[r]));
+            }
+        }
+        let spec = FunctionSpec {
+            name: format_ident!("segment_transforms"),
+            doc: vec![
+                " Segment transforms `T_i` (4×4, rows): tip coordinates → segment base coordinates.".into(),
+            ],
+            args: quote!(p: &[f64; NP], q: &[f64; NQ], transforms: &mut [[[f64; 4]; 4]; N_MODULES]),
+            inputs: self.bindings(false),
+            outputs,
+            epilogue: quote! {
+                for transform in transforms.iter_mut() {
+                    transform[3] = [0.0, 0.0, 0.0, 1.0];
+                }
+            },
+        };
+        push("segment_transforms", emit_function(&self.arena, &spec));
+
+        // Barriers alone.
+        let barriers = self.barrier_exprs();
+        let outputs = barriers
+            .iter()
+            .enumerate()
+            .map(|(k, &b)| {
+                let k = Literal::usize_unsuffixed(k);
+                (quote!(barriers[#k]), b)
+            })
+            .collect();
+        let spec = FunctionSpec {
+            name: format_ident!("barriers"),
+            doc: vec![" Plate-corner barriers `b_ij = c_ij − ε_ij` [m], module-major, corner-minor.".into()],
+            args: quote!(p: &[f64; NP], q: &[f64; NQ], barriers: &mut [f64; NB]),
+            inputs: self.bindings(false),
+            outputs,
+            epilogue: TokenStream::new(),
+        };
+        push("barriers", emit_function(&self.arena, &spec));
+
+        // Barriers with Jacobian rows and J̇q̇.
+        let terms = self.barrier_term_exprs();
+        let zero = self.arena.constant(0.0);
+        let mut outputs = Vec::new();
+        for (k, (b, module, gradient, jdot)) in terms.iter().enumerate() {
+            let k_lit = Literal::usize_unsuffixed(k);
+            outputs.push((quote!(barriers[#k_lit]), *b));
+            for col in 0..nq_value {
+                let c_lit = Literal::usize_unsuffixed(col);
+                let value = if col / 3 == *module { gradient[col % 3] } else { zero };
+                outputs.push((quote!(jacobian[#k_lit][#c_lit]), value));
+            }
+            outputs.push((quote!(jdot_qd[#k_lit]), *jdot));
+        }
+        let spec = FunctionSpec {
+            name: format_ident!("barrier_terms"),
+            doc: vec![
+                " Every barrier `b` [m], its gradient row `J = ∂b/∂q` and `J̇q̇ = q̇ᵀ ∇²b q̇`.".into(),
+            ],
+            args: quote!(
+                p: &[f64; NP],
+                q: &[f64; NQ],
+                qd: &[f64; NQ],
+                barriers: &mut [f64; NB],
+                jacobian: &mut [[f64; NQ]; NB],
+                jdot_qd: &mut [f64; NB]
+            ),
+            inputs: self.bindings(true),
+            outputs,
+            epilogue: TokenStream::new(),
+        };
+        push("barrier_terms", emit_function(&self.arena, &spec));
+
+        // Joint quantities for the recursive dynamics.
+        let mut outputs = Vec::new();
+        for i in 0..n_modules {
+            let (subspace, bias) = self.joint_exprs(i);
+            let m = &self.modules[i];
+            let i_lit = Literal::usize_unsuffixed(i);
+            for r in 0..3 {
+                let r_lit = Literal::usize_unsuffixed(r);
+                for c in 0..3 {
+                    let c_lit = Literal::usize_unsuffixed(c);
+                    outputs.push((quote!(rotation[#i_lit][#r_lit][#c_lit]), m.rotation[r][c]));
+                }
+                outputs.push((quote!(translation[#i_lit][#r_lit]), m.translation[r]));
+            }
+            for (r, row) in subspace.iter().enumerate() {
+                let r_lit = Literal::usize_unsuffixed(r);
+                for (c, &value) in row.iter().enumerate() {
+                    let c_lit = Literal::usize_unsuffixed(c);
+                    outputs.push((quote!(motion_subspace[#i_lit][#r_lit][#c_lit]), value));
+                }
+                outputs.push((quote!(bias_acceleration[#i_lit][#r_lit]), bias[r]));
+            }
+        }
+        let spec = FunctionSpec {
+            name: format_ident!("joint_terms"),
+            doc: vec![
+                " Per segment: rotation `R_i` and translation `t_i` of `T_i`, the motion subspace".into(),
+                " `S_i` (6×3; rows ω then v, in tip coordinates, so the tip's body twist relative".into(),
+                " to the segment base is `S_i q̇_i`) and `c_J,i = Ṡ_i q̇_i` (derivative in tip coordinates).".into(),
+            ],
+            args: quote!(
+                p: &[f64; NP],
+                q: &[f64; NQ],
+                qd: &[f64; NQ],
+                rotation: &mut [[[f64; 3]; 3]; N_MODULES],
+                translation: &mut [[f64; 3]; N_MODULES],
+                motion_subspace: &mut [[[f64; 3]; 6]; N_MODULES],
+                bias_acceleration: &mut [[f64; 6]; N_MODULES]
+            ),
+            inputs: self.bindings(true),
+            outputs,
+            epilogue: TokenStream::new(),
+        };
+        push("joint_terms", emit_function(&self.arena, &spec));
+
+        let plate_poses = quote! {
+            /// World poses `W_i = T_1 ⋯ T_i` of every module's top plate (4×4, rows).
+            pub fn plate_poses(p: &[f64; NP], q: &[f64; NQ], poses: &mut [[[f64; 4]; 4]; N_MODULES]) {
+                segment_transforms(p, q, poses);
+                for i in 1..N_MODULES {
+                    let parent = poses[i - 1];
+                    let local = poses[i];
+                    for r in 0..3 {
+                        for c in 0..4 {
+                            let mut sum = if c == 3 { parent[r][3] } else { 0.0 };
+                            for k in 0..3 {
+                                sum += parent[r][k] * local[k][c];
+                            }
+                            poses[i][r][c] = sum;
+                        }
+                    }
+                }
+            }
+        };
+
+        let analytic_functions = orders.iter().map(|&k| analytic::emit(k));
+        let names = self.param_names.iter().map(String::as_str);
+        let corners = self.structure.corners.iter().map(|&c| Literal::usize_unsuffixed(c));
+        let tendons = self.structure.tendons.iter().map(|&c| Literal::usize_unsuffixed(c));
+        let tokens = quote! {
+            /// Number of modules.
+            pub const N_MODULES: usize = #n;
+            /// Number of generalized coordinates (3 per module).
+            pub const NQ: usize = #nq;
+            /// Number of plate-corner barriers.
+            pub const NB: usize = #nb;
+            /// Length of the parameter vector.
+            pub const NP: usize = #np;
+            /// Name of each parameter, in parameter-vector order.
+            pub const PARAM_NAMES: [&str; NP] = [#(#names),*];
+            /// Corners per plate, one entry per module.
+            pub const CORNERS: [usize; N_MODULES] = [#(#corners),*];
+            /// Tendons per module.
+            pub const TENDONS: [usize; N_MODULES] = [#(#tendons),*];
+            #(#analytic_functions)*
+            #(#functions)*
+            #plate_poses
+        };
+        let mut header = format!(
+            "// Generated by softcbf-codegen from {source_label}; do not edit by hand.\n\
+             // Regenerate: cargo run -p softcbf-codegen -- --robot {source_label} --out FILE.rs\n\
+             // Structure: {n_modules} modules, corners {:?}, tendons {:?}, routing {:?}.\n\
+             // Operations per call (add, mul, div, sqrt/trig, analytic):\n",
+            self.structure.corners, self.structure.tendons, self.structure.routing
+        );
+        for (name, count) in &ops {
+            header.push_str(&format!(
+                "//   {name}: {} ({}, {}, {}, {}, {})\n",
+                count.total(),
+                count.add,
+                count.mul,
+                count.div,
+                count.special,
+                count.analytic
+            ));
+        }
+        header.push('\n');
+        GeneratedSource {
+            text: header + &format_file(tokens),
+            ops,
+        }
+    }
+}
+
+/// Generates the model source for a structure in one call.
+pub fn generate(structure: &Structure, source_label: &str) -> GeneratedSource {
+    build(structure).emit(source_label)
+}

@@ -1,0 +1,123 @@
+//! softcbf-generated: the robot models emitted by `softcbf-codegen` at build time.
+//!
+//! `build.rs` generates one module per robot structure found in the workspace's `robots/`
+//! directory (and in `SOFTCBF_ROBOTS`); each module has array-typed functions
+//! (`segment_transforms`, `plate_poses`, `barriers`, `barrier_terms`, `joint_terms`) and a
+//! `Model` implementing [`GeneratedModel`], the slice-based interface the runtime uses.
+//! [`find`] picks the model of a structure. Numbers are never compiled in: every function
+//! takes the parameter vector `p` laid out by `softcbf_codegen::layout`.
+
+/// `pcc_fs_fc_6(u)`: `f_s`, `f_c` and their derivatives up to order 6 (MODEL.md §2).
+#[allow(clippy::all, clippy::pedantic, unused)]
+pub mod analytic {
+    include!(concat!(env!("OUT_DIR"), "/analytic.rs"));
+}
+
+/// A generated model behind slices, so the runtime can choose it at run time.
+///
+/// Every slice must have the length the model's sizes give (checked; a wrong length
+/// panics, since it is a programming error of the caller, never a user input).
+pub trait GeneratedModel: Sync {
+    /// Module name inside this crate (e.g. `paper_sim`).
+    fn name(&self) -> &'static str;
+    /// The robot file it was generated from.
+    fn source(&self) -> &'static str;
+    /// Corners per plate, per module.
+    fn corners(&self) -> &'static [usize];
+    /// Tendons per module.
+    fn tendons(&self) -> &'static [usize];
+    /// Tendon routing, `"local"` or `"through"`.
+    fn routing(&self) -> &'static str;
+    /// Parameter names in parameter-vector order.
+    fn param_names(&self) -> &'static [&'static str];
+    /// Number of modules.
+    fn n_modules(&self) -> usize {
+        self.corners().len()
+    }
+    /// Number of generalized coordinates.
+    fn nq(&self) -> usize {
+        3 * self.n_modules()
+    }
+    /// Number of barriers.
+    fn nb(&self) -> usize {
+        self.corners().iter().sum()
+    }
+    /// Segment transforms `T_i`.
+    fn segment_transforms(&self, p: &[f64], q: &[f64], transforms: &mut [[[f64; 4]; 4]]);
+    /// World plate poses `W_i`.
+    fn plate_poses(&self, p: &[f64], q: &[f64], poses: &mut [[[f64; 4]; 4]]);
+    /// Barrier values.
+    fn barriers(&self, p: &[f64], q: &[f64], barriers: &mut [f64]);
+    /// Barriers, Jacobian rows (row-major `nb × nq`) and `J̇q̇`.
+    fn barrier_terms(
+        &self,
+        p: &[f64],
+        q: &[f64],
+        qd: &[f64],
+        barriers: &mut [f64],
+        jacobian: &mut [f64],
+        jdot_qd: &mut [f64],
+    );
+    /// Per-segment `R_i`, `t_i`, motion subspace `S_i` and `c_J,i = Ṡ_i q̇_i`.
+    #[allow(clippy::too_many_arguments)]
+    fn joint_terms(
+        &self,
+        p: &[f64],
+        q: &[f64],
+        qd: &[f64],
+        rotation: &mut [[[f64; 3]; 3]],
+        translation: &mut [[f64; 3]],
+        motion_subspace: &mut [[[f64; 3]; 6]],
+        bias_acceleration: &mut [[f64; 6]],
+    );
+}
+
+/// Implements [`GeneratedModel`] for the functions of a generated module.
+#[macro_export]
+#[doc(hidden)]
+macro_rules! impl_generated_model {
+    ($model:ident, $name:literal, $source:literal, $routing:literal) => {
+        fn sized<'a, const N: usize>(s: &'a [f64], what: &str) -> &'a [f64; N] {
+            s.try_into().unwrap_or_else(|_| panic!("{what}: length {} instead of {N}", s.len()))
+        }
+        fn sized_mut<'a, T, const N: usize>(s: &'a mut [T], what: &str) -> &'a mut [T; N] {
+            let len = s.len();
+            s.try_into().unwrap_or_else(|_| panic!("{what}: length {len} instead of {N}"))
+        }
+        impl $crate::GeneratedModel for $model {
+            fn name(&self) -> &'static str { $name }
+            fn source(&self) -> &'static str { $source }
+            fn corners(&self) -> &'static [usize] { &CORNERS }
+            fn tendons(&self) -> &'static [usize] { &TENDONS }
+            fn routing(&self) -> &'static str { $routing }
+            fn param_names(&self) -> &'static [&'static str] { &PARAM_NAMES }
+            fn segment_transforms(&self, p: &[f64], q: &[f64], transforms: &mut [[[f64; 4]; 4]]) {
+                segment_transforms(sized(p, "p"), sized(q, "q"), sized_mut(transforms, "transforms"))
+            }
+            fn plate_poses(&self, p: &[f64], q: &[f64], poses: &mut [[[f64; 4]; 4]]) {
+                plate_poses(sized(p, "p"), sized(q, "q"), sized_mut(poses, "poses"))
+            }
+            fn barriers(&self, p: &[f64], q: &[f64], b: &mut [f64]) {
+                barriers(sized(p, "p"), sized(q, "q"), sized_mut(b, "barriers"))
+            }
+            fn barrier_terms(&self, p: &[f64], q: &[f64], qd: &[f64], b: &mut [f64], jacobian: &mut [f64], jdot_qd: &mut [f64]) {
+                let (rows, rest) = jacobian.as_chunks_mut::<NQ>();
+                assert!(rest.is_empty(), "jacobian: length not a multiple of {NQ}");
+                barrier_terms(sized(p, "p"), sized(q, "q"), sized(qd, "qd"), sized_mut(b, "barriers"), sized_mut(rows, "jacobian"), sized_mut(jdot_qd, "jdot_qd"))
+            }
+            fn joint_terms(&self, p: &[f64], q: &[f64], qd: &[f64], rotation: &mut [[[f64; 3]; 3]], translation: &mut [[f64; 3]], motion_subspace: &mut [[[f64; 3]; 6]], bias_acceleration: &mut [[f64; 6]]) {
+                joint_terms(sized(p, "p"), sized(q, "q"), sized(qd, "qd"), sized_mut(rotation, "rotation"), sized_mut(translation, "translation"), sized_mut(motion_subspace, "motion_subspace"), sized_mut(bias_acceleration, "bias_acceleration"))
+            }
+        }
+    };
+}
+
+include!(concat!(env!("OUT_DIR"), "/models.rs"));
+
+/// The model generated for a structure: corners and tendons per module, and routing.
+pub fn find(corners: &[usize], tendons: &[usize], routing: &str) -> Option<&'static dyn GeneratedModel> {
+    MODELS
+        .iter()
+        .copied()
+        .find(|m| m.corners() == corners && m.tendons() == tendons && m.routing() == routing)
+}

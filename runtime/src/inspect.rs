@@ -1,0 +1,54 @@
+//! `softcbf model`: every generated and dynamic quantity at one state, as one JSON object.
+//! Used to inspect a robot file and to compare against other implementations.
+
+use serde_json::{Value, json};
+
+use crate::dynamics::{
+    DynamicsWorkspace, bias_and_gravity, elastic_energy, gravity_energy, kinetic_energy,
+    mass_matrix, update_joints,
+};
+use crate::model::Model;
+
+fn rows(flat: &[f64], columns: usize) -> Vec<Vec<f64>> {
+    flat.chunks(columns).map(<[f64]>::to_vec).collect()
+}
+
+/// The model at `(q, q̇)`; `q` and `qd` must have `model.nq()` entries.
+pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Value {
+    let (n, nq, nb) = (model.n_modules(), model.nq(), model.nb());
+    let generated = model.generated;
+    let mut poses = vec![[[0.0; 4]; 4]; n];
+    generated.plate_poses(&model.params, q, &mut poses);
+    let mut barriers = vec![0.0; nb];
+    let mut jacobian = vec![0.0; nb * nq];
+    let mut jdot_qd = vec![0.0; nb];
+    generated.barrier_terms(&model.params, q, qd, &mut barriers, &mut jacobian, &mut jdot_qd);
+
+    let mut ws = DynamicsWorkspace::new(model);
+    update_joints(model, &mut ws, q, qd);
+    mass_matrix(model, &mut ws);
+    bias_and_gravity(model, &mut ws, qd);
+    let elastic: Vec<f64> = q.iter().zip(&model.stiffness).map(|(x, k)| k * x).collect();
+    let damping: Vec<f64> = qd.iter().zip(&model.damping).map(|(x, d)| d * x).collect();
+    json!({
+        "robot": model.robot.name,
+        "generated_model": generated.name(),
+        "n": n,
+        "q": q,
+        "qd": qd,
+        "plate_poses": poses,
+        "barriers": barriers,
+        "barrier_jacobian": rows(&jacobian, nq),
+        "barrier_jdot_qd": jdot_qd,
+        "mass_matrix": rows(&ws.mass_matrix, nq),
+        "bias": ws.bias,
+        "gravity": ws.gravity,
+        "elastic": elastic,
+        "damping": damping,
+        "energy": {
+            "kinetic": kinetic_energy(model, &ws),
+            "gravity": gravity_energy(model, &ws),
+            "elastic": elastic_energy(model, q),
+        },
+    })
+}

@@ -1,0 +1,14 @@
+//! softcbf runtime: the generated model put to work.
+//!
+//! [`model::Model`] joins a robot description to its generated functions; [`dynamics`]
+//! computes `M`, `C q̇`, `G` and forward dynamics over [`spatial`] algebra; [`inspect`]
+//! reports a model at one state; [`cli`] holds what the `softcbf` command shares.
+
+pub mod cli;
+pub mod dynamics;
+pub mod inspect;
+pub mod integrator;
+pub mod model;
+pub mod protocol;
+pub mod qp;
+pub mod spatial;

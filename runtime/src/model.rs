@@ -1,0 +1,131 @@
+//! The runtime model: a validated robot description joined to its generated functions.
+//! Immutable after construction; computations write into workspaces built from it.
+
+use softcbf_codegen::layout::{param_layout, pack_params};
+use softcbf_codegen::robot::{Robot, Routing};
+use softcbf_generated::GeneratedModel;
+
+use crate::spatial::{Mat6, rigid_body_inertia};
+
+/// Why a robot cannot be simulated or controlled with this build.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// No model was generated for this structure.
+    #[error(
+        "{source}: no generated model for {modules} modules with corners {corners:?} and tendons {tendons:?} \
+         ({routing}); add the robot file to robots/ (or list it in SOFTCBF_ROBOTS) and rebuild; \
+         this build has: {available}",
+        source = source_file
+    )]
+    NoGeneratedModel {
+        source_file: String,
+        modules: usize,
+        corners: Vec<usize>,
+        tendons: Vec<usize>,
+        routing: &'static str,
+        available: String,
+    },
+}
+
+/// A robot ready for computation.
+pub struct Model {
+    /// The description it was built from.
+    pub robot: Robot,
+    /// Its generated functions.
+    pub generated: &'static dyn GeneratedModel,
+    /// The parameter vector the generated functions read.
+    pub params: Vec<f64>,
+    /// Spatial inertia of each module's plate about its tip-frame origin, tip coordinates.
+    pub inertias: Vec<Mat6>,
+    /// Diagonal of `K` (MODEL.md §4): `κθ/d², κθ/d², κL` per module.
+    pub stiffness: Vec<f64>,
+    /// Diagonal of `D`: `βθ/d², βθ/d², βL` per module.
+    pub damping: Vec<f64>,
+}
+
+fn routing_name(routing: Routing) -> &'static str {
+    match routing {
+        Routing::Local => "local",
+        Routing::Through => "through",
+    }
+}
+
+impl Model {
+    /// Joins a robot to the generated model of its structure.
+    pub fn new(robot: Robot) -> Result<Model, ModelError> {
+        let structure = robot.structure();
+        let routing = routing_name(structure.routing);
+        let Some(generated) =
+            softcbf_generated::find(&structure.corners, &structure.tendons, routing)
+        else {
+            let available: Vec<String> = softcbf_generated::MODELS
+                .iter()
+                .map(|m| format!("{} (corners {:?})", m.name(), m.corners()))
+                .collect();
+            return Err(ModelError::NoGeneratedModel {
+                source_file: robot.source.display().to_string(),
+                modules: structure.modules(),
+                corners: structure.corners,
+                tendons: structure.tendons,
+                routing,
+                available: available.join(", "),
+            });
+        };
+        let layout = param_layout(&structure);
+        assert!(
+            layout
+                .iter()
+                .map(|p| p.name())
+                .eq(generated.param_names().iter().map(|s| s.to_string())),
+            "parameter layout of {} differs from the codegen library's: rebuild softcbf-generated",
+            generated.name()
+        );
+        let params = pack_params(&robot);
+        let mut inertias = Vec::new();
+        let mut stiffness = Vec::new();
+        let mut damping = Vec::new();
+        for m in &robot.modules {
+            let [ixx, iyy, izz] = m.inertia;
+            let inertia = [[ixx, 0.0, 0.0], [0.0, iyy, 0.0], [0.0, 0.0, izz]];
+            inertias.push(rigid_body_inertia(
+                m.mass,
+                &[0.0, 0.0, m.com_offset],
+                &inertia,
+            ));
+            let d2 = m.tendon_radius * m.tendon_radius;
+            stiffness.extend([
+                m.bending_stiffness / d2,
+                m.bending_stiffness / d2,
+                m.axial_stiffness,
+            ]);
+            damping.extend([
+                m.bending_damping / d2,
+                m.bending_damping / d2,
+                m.axial_damping,
+            ]);
+        }
+        Ok(Model {
+            robot,
+            generated,
+            params,
+            inertias,
+            stiffness,
+            damping,
+        })
+    }
+
+    /// Number of modules.
+    pub fn n_modules(&self) -> usize {
+        self.robot.modules.len()
+    }
+
+    /// Number of generalized coordinates.
+    pub fn nq(&self) -> usize {
+        3 * self.n_modules()
+    }
+
+    /// Number of barriers.
+    pub fn nb(&self) -> usize {
+        self.generated.nb()
+    }
+}

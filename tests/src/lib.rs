@@ -1,0 +1,5 @@
+//! Shared helpers of the integration tests: independent reference evaluations.
+//! Nothing here uses the generated code; tests compare the two.
+
+pub mod highprec;
+pub mod reference;
