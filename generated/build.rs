@@ -11,7 +11,13 @@ fn module_name(path: &Path) -> String {
     let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("robot");
     let mut name: String = stem
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
         .collect();
     if name.starts_with(|c: char| c.is_ascii_digit()) {
         name.insert(0, 'm');
@@ -20,12 +26,19 @@ fn module_name(path: &Path) -> String {
 }
 
 fn main() {
-    let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
-    let root = manifest.parent().expect("generated/ sits in the workspace").to_path_buf();
+    let manifest =
+        PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let root = manifest
+        .parent()
+        .expect("generated/ sits in the workspace")
+        .to_path_buf();
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let robots_dir = root.join("robots");
     println!("cargo:rerun-if-changed={}", robots_dir.display());
-    println!("cargo:rerun-if-changed={}", root.join("codegen/src").display());
+    println!(
+        "cargo:rerun-if-changed={}",
+        root.join("codegen/src").display()
+    );
     println!("cargo:rerun-if-env-changed=SOFTCBF_ROBOTS");
 
     let mut files: Vec<PathBuf> = std::fs::read_dir(&robots_dir)
@@ -38,7 +51,12 @@ fn main() {
         .unwrap_or_default();
     files.sort();
     if let Ok(extra) = std::env::var("SOFTCBF_ROBOTS") {
-        files.extend(extra.split(':').filter(|s| !s.is_empty()).map(PathBuf::from));
+        files.extend(
+            extra
+                .split(':')
+                .filter(|s| !s.is_empty())
+                .map(PathBuf::from),
+        );
     }
 
     let mut models: Vec<(String, String, Structure)> = Vec::new();
@@ -47,7 +65,10 @@ fn main() {
         println!("cargo:rerun-if-changed={}", path.display());
         let robot = match Robot::load(path) {
             Ok(robot) => robot,
-            Err(error) => panic!("\n\nerror: {error}\n(robot files in {} are compiled into the model)\n", robots_dir.display()),
+            Err(error) => panic!(
+                "\n\nerror: {error}\n(robot files in {} are compiled into the model)\n",
+                robots_dir.display()
+            ),
         };
         let structure = robot.structure();
         if seen.insert(structure.clone()) {
@@ -66,7 +87,11 @@ fn main() {
             routing: Routing::Local,
         };
         if seen.insert(structure.clone()) {
-            models.push((format!("hex_{n}"), format!("the benchmark structure hex_{n}"), structure));
+            models.push((
+                format!("hex_{n}"),
+                format!("the benchmark structure hex_{n}"),
+                structure,
+            ));
         }
     }
 

@@ -97,7 +97,8 @@ impl Differentiator {
             "derivative with respect to a non-symbol"
         );
         let memo = self.memo.entry(symbol).or_default();
-        let leaf = move |arena: &mut Arena, s: Id| arena.constant(if s == symbol { 1.0 } else { 0.0 });
+        let leaf =
+            move |arena: &mut Arena, s: Id| arena.constant(if s == symbol { 1.0 } else { 0.0 });
         propagate(arena, expr, memo, &leaf)
     }
 

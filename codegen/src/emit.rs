@@ -60,8 +60,11 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
     let program = schedule(arena, &outputs);
     let ops = op_count(arena, &program);
 
-    let bound: BTreeMap<Id, &TokenStream> =
-        spec.inputs.iter().map(|(id, source)| (*id, source)).collect();
+    let bound: BTreeMap<Id, &TokenStream> = spec
+        .inputs
+        .iter()
+        .map(|(id, source)| (*id, source))
+        .collect();
     let operand = |id: Id| -> TokenStream {
         match arena.node(id) {
             Node::Const(bits) => literal(f64::from_bits(bits)),

@@ -47,11 +47,7 @@ pub enum Node {
     /// `cos a`.
     Cos(Id),
     /// The `order`-th derivative of an analytic function, evaluated at `arg`.
-    Analytic {
-        func: Analytic,
-        order: u8,
-        arg: Id,
-    },
+    Analytic { func: Analytic, order: u8, arg: Id },
 }
 
 impl Node {
@@ -158,8 +154,8 @@ impl Arena {
     pub fn add(&mut self, a: Id, b: Id) -> Id {
         match (self.as_const(a), self.as_const(b)) {
             (Some(x), Some(y)) => return self.constant(x + y),
-            (Some(x), None) if x == 0.0 => return b,
-            (None, Some(y)) if y == 0.0 => return a,
+            (Some(0.0), None) => return b,
+            (None, Some(0.0)) => return a,
             _ => {}
         }
         if a == b {
@@ -204,11 +200,11 @@ impl Arena {
     pub fn mul(&mut self, a: Id, b: Id) -> Id {
         match (self.as_const(a), self.as_const(b)) {
             (Some(x), Some(y)) => return self.constant(x * y),
-            (Some(x), _) | (_, Some(x)) if x == 0.0 => return self.constant(0.0),
-            (Some(x), None) if x == 1.0 => return b,
-            (None, Some(y)) if y == 1.0 => return a,
-            (Some(x), None) if x == -1.0 => return self.neg(b),
-            (None, Some(y)) if y == -1.0 => return self.neg(a),
+            (Some(0.0), _) | (_, Some(0.0)) => return self.constant(0.0),
+            (Some(1.0), None) => return b,
+            (None, Some(1.0)) => return a,
+            (Some(-1.0), None) => return self.neg(b),
+            (None, Some(-1.0)) => return self.neg(a),
             _ => {}
         }
         // Pull negations out: (−x)·y = −(x·y).
@@ -227,11 +223,11 @@ impl Arena {
             (a, b)
         };
         if let Some(c) = self.as_const(a) {
-            if let Node::Mul(x, y) = self.node(b) {
-                if let Some(d) = self.as_const(x) {
-                    let cd = self.constant(c * d);
-                    return self.mul(cd, y);
-                }
+            if let Node::Mul(x, y) = self.node(b)
+                && let Some(d) = self.as_const(x)
+            {
+                let cd = self.constant(c * d);
+                return self.mul(cd, y);
             }
             return self.intern(Node::Mul(a, b));
         }
@@ -246,9 +242,9 @@ impl Arena {
     pub fn div(&mut self, a: Id, b: Id) -> Id {
         match (self.as_const(a), self.as_const(b)) {
             (Some(x), Some(y)) if y != 0.0 => return self.constant(x / y),
-            (Some(x), _) if x == 0.0 => return self.constant(0.0),
-            (None, Some(y)) if y == 1.0 => return a,
-            (None, Some(y)) if y == -1.0 => return self.neg(a),
+            (Some(0.0), _) => return self.constant(0.0),
+            (None, Some(1.0)) => return a,
+            (None, Some(-1.0)) => return self.neg(a),
             // Division by a power of two is exact as a multiplication.
             (None, Some(y)) if y != 0.0 && (1.0 / y) * y == 1.0 && is_power_of_two(y) => {
                 let inverse = self.constant(1.0 / y);
@@ -297,7 +293,7 @@ impl Arena {
     /// `sin a`.
     pub fn sin(&mut self, a: Id) -> Id {
         match self.as_const(a) {
-            Some(x) if x == 0.0 => self.constant(0.0),
+            Some(0.0) => self.constant(0.0),
             _ => self.intern(Node::Sin(a)),
         }
     }
@@ -305,7 +301,7 @@ impl Arena {
     /// `cos a`.
     pub fn cos(&mut self, a: Id) -> Id {
         match self.as_const(a) {
-            Some(x) if x == 0.0 => self.constant(1.0),
+            Some(0.0) => self.constant(1.0),
             _ => self.intern(Node::Cos(a)),
         }
     }

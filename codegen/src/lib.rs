@@ -27,6 +27,7 @@ pub mod model;
 pub mod program;
 pub mod robot;
 pub mod sexpr;
+pub mod toml_file;
 
 pub use model::{GeneratedSource, generate};
 pub use robot::{Robot, RobotError, Structure};

@@ -340,7 +340,10 @@ impl SymbolicModel {
             .collect();
         let spec = FunctionSpec {
             name: format_ident!("barriers"),
-            doc: vec![" Plate-corner barriers `b_ij = c_ij − ε_ij` [m], module-major, corner-minor.".into()],
+            doc: vec![
+                " Plate-corner barriers `b_ij = c_ij − ε_ij` [m], module-major, corner-minor."
+                    .into(),
+            ],
             args: quote!(p: &[f64; NP], q: &[f64; NQ], barriers: &mut [f64; NB]),
             inputs: self.bindings(false),
             outputs,
@@ -357,7 +360,11 @@ impl SymbolicModel {
             outputs.push((quote!(barriers[#k_lit]), *b));
             for col in 0..nq_value {
                 let c_lit = Literal::usize_unsuffixed(col);
-                let value = if col / 3 == *module { gradient[col % 3] } else { zero };
+                let value = if col / 3 == *module {
+                    gradient[col % 3]
+                } else {
+                    zero
+                };
                 outputs.push((quote!(jacobian[#k_lit][#c_lit]), value));
             }
             outputs.push((quote!(jdot_qd[#k_lit]), *jdot));
@@ -448,8 +455,16 @@ impl SymbolicModel {
 
         let analytic_functions = orders.iter().map(|&k| analytic::emit(k));
         let names = self.param_names.iter().map(String::as_str);
-        let corners = self.structure.corners.iter().map(|&c| Literal::usize_unsuffixed(c));
-        let tendons = self.structure.tendons.iter().map(|&c| Literal::usize_unsuffixed(c));
+        let corners = self
+            .structure
+            .corners
+            .iter()
+            .map(|&c| Literal::usize_unsuffixed(c));
+        let tendons = self
+            .structure
+            .tendons
+            .iter()
+            .map(|&c| Literal::usize_unsuffixed(c));
         let tokens = quote! {
             /// Number of modules.
             pub const N_MODULES: usize = #n;

@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use serde::de::{self, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
-use toml::de::{DeTable, DeValue};
+
+pub use crate::toml_file::FileError as RobotError;
+use crate::toml_file::{Checker, Rule};
 
 /// One module: a PCC foam segment and the rigid plate on top of it. SI units.
 #[derive(Clone, Debug, PartialEq)]
@@ -148,10 +150,7 @@ impl Robot {
 
     /// Reads and validates a robot file.
     pub fn load(path: &Path) -> Result<Robot, RobotError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::toml_file::read(path, "robot file")?;
         Robot::parse(&text, path)
     }
 
@@ -179,31 +178,6 @@ impl Structure {
 }
 
 /// Why a robot file could not be used. Every variant names the file.
-#[derive(Debug, thiserror::Error)]
-pub enum RobotError {
-    /// The file could not be read.
-    #[error("{path}: cannot read robot file: {source}", path = path.display())]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    /// The file is not valid TOML or a field has the wrong type.
-    #[error("{path}:{line}:{column}: {message}", path = path.display())]
-    Syntax {
-        path: PathBuf,
-        line: usize,
-        column: usize,
-        message: String,
-    },
-    /// A field has a value the model cannot use.
-    #[error("{path}:{line}: field `{field}`: {message}", path = path.display())]
-    Invalid {
-        path: PathBuf,
-        line: usize,
-        field: String,
-        message: String,
-    },
-}
 
 // ---------------------------------------------------------------------------------------
 // The file as serde reads it: every value keeps its byte span.
@@ -358,14 +332,6 @@ struct Fields {
     margin: Option<Val<Margin>>,
 }
 
-/// What a number must be.
-#[derive(Clone, Copy)]
-enum Rule {
-    Finite,
-    Positive,
-    NonNegative,
-}
-
 /// The value of `own` if written, else of `defaults`, else `builtin`.
 fn resolve<T: Clone>(own: &Option<Val<T>>, defaults: &Option<Val<T>>, builtin: T) -> T {
     own.as_ref()
@@ -373,33 +339,7 @@ fn resolve<T: Clone>(own: &Option<Val<T>>, defaults: &Option<Val<T>>, builtin: T
         .map_or(builtin, |v| v.value.clone())
 }
 
-/// Checks the values of one file against the rules and builds error values for it.
-struct Checker<'a> {
-    text: &'a str,
-    path: &'a Path,
-}
-
 impl Checker<'_> {
-    fn invalid(&self, span: &Range<usize>, field: &str, message: String) -> RobotError {
-        RobotError::Invalid {
-            path: self.path.to_path_buf(),
-            line: line_column(self.text, span.start).0,
-            field: field.to_string(),
-            message,
-        }
-    }
-
-    fn syntax(&self, error: &toml::de::Error) -> RobotError {
-        let span = error.span().unwrap_or(0..0);
-        let (line, column) = line_column(self.text, span.start);
-        RobotError::Syntax {
-            path: self.path.to_path_buf(),
-            line,
-            column,
-            message: describe(self.text, span.start, error.message()),
-        }
-    }
-
     fn robot(&self, raw: RawRobot) -> Result<Robot, RobotError> {
         let name = raw.name.unwrap_or_else(|| {
             self.path
@@ -677,88 +617,6 @@ impl Checker<'_> {
         Ok(fields)
     }
 
-    /// Checks one number against `rule`; `unit` is for the message.
-    fn number(
-        &self,
-        v: &Spanned<f64>,
-        field: &str,
-        rule: Rule,
-        unit: &str,
-    ) -> Result<f64, RobotError> {
-        self.check(*v.get_ref(), &v.span(), field, "", rule, unit)
-    }
-
-    /// Checks `value` (written at `span`, described in messages as `what`, e.g. "entry 2 ").
-    fn check(
-        &self,
-        value: f64,
-        span: &Range<usize>,
-        field: &str,
-        what: &str,
-        rule: Rule,
-        unit: &str,
-    ) -> Result<f64, RobotError> {
-        let unit = if unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {unit}")
-        };
-        let problem = if !value.is_finite() {
-            Some(format!("{what}must be a finite number, got {value}"))
-        } else {
-            match rule {
-                Rule::Finite => None,
-                Rule::Positive if value <= 0.0 => {
-                    Some(format!("{what}must be > 0{unit}, got {value}"))
-                }
-                Rule::NonNegative if value < 0.0 => {
-                    Some(format!("{what}must be ≥ 0{unit}, got {value}"))
-                }
-                Rule::Positive | Rule::NonNegative => None,
-            }
-        };
-        match problem {
-            Some(message) => Err(self.invalid(span, field, message)),
-            None => Ok(value),
-        }
-    }
-
-    /// Checks every entry of an array of numbers.
-    fn list(
-        &self,
-        v: &[Spanned<f64>],
-        field: &str,
-        rule: Rule,
-        unit: &str,
-    ) -> Result<Vec<f64>, RobotError> {
-        v.iter()
-            .enumerate()
-            .map(|(k, x)| {
-                self.check(
-                    *x.get_ref(),
-                    &x.span(),
-                    field,
-                    &format!("entry {} ", k + 1),
-                    rule,
-                    unit,
-                )
-            })
-            .collect()
-    }
-
-    /// An array that must have exactly three entries.
-    fn three(
-        &self,
-        values: Vec<f64>,
-        v: &Spanned<Vec<Spanned<f64>>>,
-        field: &str,
-        what: &str,
-    ) -> Result<[f64; 3], RobotError> {
-        let n = values.len();
-        <[f64; 3]>::try_from(values)
-            .map_err(|_| self.invalid(&v.span(), field, format!("needs 3 {what}, got {n} entries")))
-    }
-
     /// Corner or tendon angles: finite degrees, at least 3, distinct modulo 360°; for
     /// tendons also a full-rank tendon matrix. Returns radians.
     fn angles(
@@ -865,131 +723,6 @@ impl Checker<'_> {
             }
         }
         Ok(moments)
-    }
-}
-
-// ---------------------------------------------------------------------------------------
-// Positions and messages of syntax errors.
-
-/// 1-based line and column (in characters) of byte offset `at` in `text`.
-fn line_column(text: &str, at: usize) -> (usize, usize) {
-    let bytes = &text.as_bytes()[..at.min(text.len())];
-    let line = 1 + bytes.iter().filter(|&&b| b == b'\n').count();
-    let start = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1);
-    let column = 1 + bytes[start..].iter().filter(|&&b| b & 0xC0 != 0x80).count();
-    (line, column)
-}
-
-/// Where a byte offset falls in the parsed document.
-struct Hit {
-    /// Path of the table holding the key (`""`, `barrier`, `module[2]`).
-    table: String,
-    /// Path of the field (`module[2].mass`).
-    field: String,
-    /// 1-based entry when inside an array of values.
-    entry: Option<usize>,
-    /// On the key rather than the value.
-    key: bool,
-    /// Span length, to keep the innermost hit.
-    len: usize,
-}
-
-fn keep(best: &mut Option<Hit>, span: Range<usize>, at: usize, hit: impl FnOnce(usize) -> Hit) {
-    let inside = span.start <= at && (at < span.end || span.is_empty() && at == span.start);
-    let len = span.end.saturating_sub(span.start);
-    if inside && best.as_ref().is_none_or(|b| len < b.len) {
-        *best = Some(hit(len));
-    }
-}
-
-fn locate_table(table: &DeTable, prefix: &str, at: usize, best: &mut Option<Hit>) {
-    for (key, value) in table.iter() {
-        let field = if prefix.is_empty() {
-            key.get_ref().to_string()
-        } else {
-            format!("{prefix}.{}", key.get_ref())
-        };
-        keep(best, key.span(), at, |len| Hit {
-            table: prefix.to_string(),
-            field: field.clone(),
-            entry: None,
-            key: true,
-            len,
-        });
-        locate_value(value, prefix, &field, None, at, best);
-    }
-}
-
-fn locate_value(
-    value: &Spanned<DeValue>,
-    table: &str,
-    field: &str,
-    entry: Option<usize>,
-    at: usize,
-    best: &mut Option<Hit>,
-) {
-    keep(best, value.span(), at, |len| Hit {
-        table: table.to_string(),
-        field: field.to_string(),
-        entry,
-        key: false,
-        len,
-    });
-    match value.get_ref() {
-        DeValue::Table(inner) => locate_table(inner, field, at, best),
-        DeValue::Array(items) => {
-            for (k, item) in items.iter().enumerate() {
-                if matches!(item.get_ref(), DeValue::Table(_)) {
-                    let path = format!("{field}[{}]", k + 1);
-                    locate_table_in(item, &path, at, best);
-                } else {
-                    locate_value(item, table, field, Some(k + 1), at, best);
-                }
-            }
-        }
-        _ => {}
-    }
-}
-
-fn locate_table_in(item: &Spanned<DeValue>, path: &str, at: usize, best: &mut Option<Hit>) {
-    if let DeValue::Table(inner) = item.get_ref() {
-        locate_table(inner, path, at, best);
-    }
-}
-
-/// The message of a serde/TOML error at byte `at`, with the field or table it concerns.
-fn describe(text: &str, at: usize, message: &str) -> String {
-    let message = message
-        .replace("expected f64", "expected a number")
-        .replace("expected i64", "expected an integer");
-    let Ok(document) = DeTable::parse(text) else {
-        return message;
-    };
-    let mut best = None;
-    locate_table(document.get_ref(), "", at, &mut best);
-    let Some(hit) = best else {
-        return message;
-    };
-    if hit.key
-        && let Some(rest) = message.strip_prefix("unknown field `")
-        && let Some((name, expected)) = rest.split_once("`, ")
-    {
-        let place = if hit.table.is_empty() {
-            "at top level".to_string()
-        } else if let Some(i) = hit
-            .table
-            .strip_prefix("module[")
-            .and_then(|s| s.strip_suffix(']'))
-        {
-            format!("in [[module]] {i}")
-        } else {
-            format!("in [{}]", hit.table)
-        };
-        return format!("unknown field `{name}` {place}; {expected}");
-    }
-    match hit.entry {
-        Some(k) => format!("field `{}`, entry {k}: {message}", hit.field),
-        None => format!("field `{}`: {message}", hit.field),
     }
 }
 

@@ -39,7 +39,10 @@ pub fn parse(arena: &mut Arena, text: &str) -> Result<Id, String> {
     let mut position = 0;
     let id = parse_at(arena, &tokens, &mut position)?;
     if position != tokens.len() {
-        return Err(format!("unexpected `{}` after the expression", tokens[position]));
+        return Err(format!(
+            "unexpected `{}` after the expression",
+            tokens[position]
+        ));
     }
     Ok(id)
 }
@@ -78,7 +81,10 @@ fn parse_at(arena: &mut Arena, tokens: &[&str], position: &mut usize) -> Result<
         if head == "^" && args.len() == 1 {
             let text = tokens[*position];
             *position += 1;
-            integer = Some(text.parse::<i32>().map_err(|_| format!("`{text}` is not an integer power"))?);
+            integer = Some(
+                text.parse::<i32>()
+                    .map_err(|_| format!("`{text}` is not an integer power"))?,
+            );
             continue;
         }
         args.push(parse_at(arena, tokens, position)?);
@@ -90,7 +96,11 @@ fn parse_at(arena: &mut Arena, tokens: &[&str], position: &mut usize) -> Result<
         } else {
             (Analytic::Fc, name.strip_prefix("fc")?)
         };
-        let order = if rest.is_empty() { 0 } else { rest.strip_prefix('^')?.parse().ok()? };
+        let order = if rest.is_empty() {
+            0
+        } else {
+            rest.strip_prefix('^')?.parse().ok()?
+        };
         Some((func, order))
     };
     Ok(match (head, args.as_slice()) {
@@ -107,6 +117,11 @@ fn parse_at(arena: &mut Arena, tokens: &[&str], position: &mut usize) -> Result<
             let (func, order) = analytic(name).unwrap_or((Analytic::Fs, 0));
             arena.analytic(func, order, *a)
         }
-        _ => return Err(format!("`({head} …)` with {} arguments is not an expression", args.len())),
+        _ => {
+            return Err(format!(
+                "`({head} …)` with {} arguments is not an expression",
+                args.len()
+            ));
+        }
     })
 }

@@ -78,21 +78,39 @@ pub trait GeneratedModel: Sync {
 macro_rules! impl_generated_model {
     ($model:ident, $name:literal, $source:literal, $routing:literal) => {
         fn sized<'a, const N: usize>(s: &'a [f64], what: &str) -> &'a [f64; N] {
-            s.try_into().unwrap_or_else(|_| panic!("{what}: length {} instead of {N}", s.len()))
+            s.try_into()
+                .unwrap_or_else(|_| panic!("{what}: length {} instead of {N}", s.len()))
         }
         fn sized_mut<'a, T, const N: usize>(s: &'a mut [T], what: &str) -> &'a mut [T; N] {
             let len = s.len();
-            s.try_into().unwrap_or_else(|_| panic!("{what}: length {len} instead of {N}"))
+            s.try_into()
+                .unwrap_or_else(|_| panic!("{what}: length {len} instead of {N}"))
         }
         impl $crate::GeneratedModel for $model {
-            fn name(&self) -> &'static str { $name }
-            fn source(&self) -> &'static str { $source }
-            fn corners(&self) -> &'static [usize] { &CORNERS }
-            fn tendons(&self) -> &'static [usize] { &TENDONS }
-            fn routing(&self) -> &'static str { $routing }
-            fn param_names(&self) -> &'static [&'static str] { &PARAM_NAMES }
+            fn name(&self) -> &'static str {
+                $name
+            }
+            fn source(&self) -> &'static str {
+                $source
+            }
+            fn corners(&self) -> &'static [usize] {
+                &CORNERS
+            }
+            fn tendons(&self) -> &'static [usize] {
+                &TENDONS
+            }
+            fn routing(&self) -> &'static str {
+                $routing
+            }
+            fn param_names(&self) -> &'static [&'static str] {
+                &PARAM_NAMES
+            }
             fn segment_transforms(&self, p: &[f64], q: &[f64], transforms: &mut [[[f64; 4]; 4]]) {
-                segment_transforms(sized(p, "p"), sized(q, "q"), sized_mut(transforms, "transforms"))
+                segment_transforms(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized_mut(transforms, "transforms"),
+                )
             }
             fn plate_poses(&self, p: &[f64], q: &[f64], poses: &mut [[[f64; 4]; 4]]) {
                 plate_poses(sized(p, "p"), sized(q, "q"), sized_mut(poses, "poses"))
@@ -100,13 +118,45 @@ macro_rules! impl_generated_model {
             fn barriers(&self, p: &[f64], q: &[f64], b: &mut [f64]) {
                 barriers(sized(p, "p"), sized(q, "q"), sized_mut(b, "barriers"))
             }
-            fn barrier_terms(&self, p: &[f64], q: &[f64], qd: &[f64], b: &mut [f64], jacobian: &mut [f64], jdot_qd: &mut [f64]) {
+            fn barrier_terms(
+                &self,
+                p: &[f64],
+                q: &[f64],
+                qd: &[f64],
+                b: &mut [f64],
+                jacobian: &mut [f64],
+                jdot_qd: &mut [f64],
+            ) {
                 let (rows, rest) = jacobian.as_chunks_mut::<NQ>();
                 assert!(rest.is_empty(), "jacobian: length not a multiple of {NQ}");
-                barrier_terms(sized(p, "p"), sized(q, "q"), sized(qd, "qd"), sized_mut(b, "barriers"), sized_mut(rows, "jacobian"), sized_mut(jdot_qd, "jdot_qd"))
+                barrier_terms(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized(qd, "qd"),
+                    sized_mut(b, "barriers"),
+                    sized_mut(rows, "jacobian"),
+                    sized_mut(jdot_qd, "jdot_qd"),
+                )
             }
-            fn joint_terms(&self, p: &[f64], q: &[f64], qd: &[f64], rotation: &mut [[[f64; 3]; 3]], translation: &mut [[f64; 3]], motion_subspace: &mut [[[f64; 3]; 6]], bias_acceleration: &mut [[f64; 6]]) {
-                joint_terms(sized(p, "p"), sized(q, "q"), sized(qd, "qd"), sized_mut(rotation, "rotation"), sized_mut(translation, "translation"), sized_mut(motion_subspace, "motion_subspace"), sized_mut(bias_acceleration, "bias_acceleration"))
+            fn joint_terms(
+                &self,
+                p: &[f64],
+                q: &[f64],
+                qd: &[f64],
+                rotation: &mut [[[f64; 3]; 3]],
+                translation: &mut [[f64; 3]],
+                motion_subspace: &mut [[[f64; 3]; 6]],
+                bias_acceleration: &mut [[f64; 6]],
+            ) {
+                joint_terms(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized(qd, "qd"),
+                    sized_mut(rotation, "rotation"),
+                    sized_mut(translation, "translation"),
+                    sized_mut(motion_subspace, "motion_subspace"),
+                    sized_mut(bias_acceleration, "bias_acceleration"),
+                )
             }
         }
     };
@@ -115,7 +165,11 @@ macro_rules! impl_generated_model {
 include!(concat!(env!("OUT_DIR"), "/models.rs"));
 
 /// The model generated for a structure: corners and tendons per module, and routing.
-pub fn find(corners: &[usize], tendons: &[usize], routing: &str) -> Option<&'static dyn GeneratedModel> {
+pub fn find(
+    corners: &[usize],
+    tendons: &[usize],
+    routing: &str,
+) -> Option<&'static dyn GeneratedModel> {
     MODELS
         .iter()
         .copied()

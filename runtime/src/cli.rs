@@ -12,7 +12,10 @@ pub const PAPER_SIM_ROBOT: &str = include_str!("../../robots/paper-sim.toml");
 pub fn load_robot(path: Option<&Path>) -> Result<Robot, RobotError> {
     match path {
         Some(path) => Robot::load(path),
-        None => Robot::parse(PAPER_SIM_ROBOT, &PathBuf::from("<embedded robots/paper-sim.toml>")),
+        None => Robot::parse(
+            PAPER_SIM_ROBOT,
+            &PathBuf::from("<embedded robots/paper-sim.toml>"),
+        ),
     }
 }
 
@@ -25,7 +28,10 @@ pub fn parse_vector(name: &str, text: &str, expected: usize) -> Result<Vec<f64>,
             .parse()
             .map_err(|_| format!("{name}: entry {} `{item}` is not a number", k + 1))?;
         if !value.is_finite() {
-            return Err(format!("{name}: entry {} is {value}; values must be finite", k + 1));
+            return Err(format!(
+                "{name}: entry {} is {value}; values must be finite",
+                k + 1
+            ));
         }
         values.push(value);
     }

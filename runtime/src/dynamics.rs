@@ -206,8 +206,8 @@ fn newton_euler(
         target[3 * i..3 * i + 3].copy_from_slice(&tau);
         if i > 0 {
             let to_parent = apply_transpose(&ws.transforms[i], &ws.forces[i]);
-            for r in 0..6 {
-                ws.forces[i - 1][r] += to_parent[r];
+            for (parent, child) in ws.forces[i - 1].iter_mut().zip(&to_parent) {
+                *parent += child;
             }
         }
     }
@@ -283,8 +283,8 @@ pub fn factor_mass_matrix(ws: &mut DynamicsWorkspace) -> Result<(), DynamicsErro
         for k in 0..j {
             diagonal -= l[j * nq + k] * l[j * nq + k];
         }
-        // Also rejects NaN: `!(x > 0)` is true for NaN.
-        if !(diagonal > 0.0) || !diagonal.is_finite() {
+        // NaN is not finite, so it is rejected too.
+        if !diagonal.is_finite() || diagonal <= 0.0 {
             return Err(DynamicsError::NotPositiveDefinite);
         }
         let pivot = diagonal.sqrt();

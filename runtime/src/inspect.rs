@@ -22,7 +22,14 @@ pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Value {
     let mut barriers = vec![0.0; nb];
     let mut jacobian = vec![0.0; nb * nq];
     let mut jdot_qd = vec![0.0; nb];
-    generated.barrier_terms(&model.params, q, qd, &mut barriers, &mut jacobian, &mut jdot_qd);
+    generated.barrier_terms(
+        &model.params,
+        q,
+        qd,
+        &mut barriers,
+        &mut jacobian,
+        &mut jdot_qd,
+    );
 
     let mut ws = DynamicsWorkspace::new(model);
     update_joints(model, &mut ws, q, qd);

@@ -5,6 +5,7 @@
 //! reports a model at one state; [`cli`] holds what the `softcbf` command shares.
 
 pub mod cli;
+pub mod control;
 pub mod dynamics;
 pub mod inspect;
 pub mod integrator;

@@ -11,7 +11,11 @@ use softcbf::inspect::model_report;
 use softcbf::model::Model;
 
 #[derive(Parser)]
-#[command(name = "softcbf", version, about = "Safe control of soft-rigid robots with self-contact")]
+#[command(
+    name = "softcbf",
+    version,
+    about = "Safe control of soft-rigid robots with self-contact"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -48,7 +52,10 @@ fn run(cli: Cli) -> Result<(), String> {
                 None => vec![0.0; nq],
             };
             let report = model_report(&model, &q, &qd);
-            println!("{}", serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
+            );
             Ok(())
         }
     }

@@ -1,7 +1,7 @@
 //! The runtime model: a validated robot description joined to its generated functions.
 //! Immutable after construction; computations write into workspaces built from it.
 
-use softcbf_codegen::layout::{param_layout, pack_params};
+use softcbf_codegen::layout::{pack_params, param_layout};
 use softcbf_codegen::robot::{Robot, Routing};
 use softcbf_generated::GeneratedModel;
 

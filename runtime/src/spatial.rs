@@ -63,7 +63,14 @@ pub fn cross_motion(a: &Vec6, b: &Vec6) -> Vec6 {
     let top = cross3(&w, &bw);
     let wv = cross3(&w, &bv);
     let vw = cross3(&v, &bw);
-    [top[0], top[1], top[2], wv[0] + vw[0], wv[1] + vw[1], wv[2] + vw[2]]
+    [
+        top[0],
+        top[1],
+        top[2],
+        wv[0] + vw[0],
+        wv[1] + vw[1],
+        wv[2] + vw[2],
+    ]
 }
 
 /// `a ×* f`: force cross product.
@@ -73,7 +80,14 @@ pub fn cross_force(a: &Vec6, f: &Vec6) -> Vec6 {
     let wn = cross3(&w, &n);
     let vf = cross3(&v, &lin);
     let wf = cross3(&w, &lin);
-    [wn[0] + vf[0], wn[1] + vf[1], wn[2] + vf[2], wf[0], wf[1], wf[2]]
+    [
+        wn[0] + vf[0],
+        wn[1] + vf[1],
+        wn[2] + vf[2],
+        wf[0],
+        wf[1],
+        wf[2],
+    ]
 }
 
 /// `A b` for a 6×6 matrix.

@@ -66,7 +66,11 @@ const DERIVATIVES: &[(&str, &str, &str)] = &[
     ("x", "(fc^2 x)", "(fc^3 x)"),
     ("x", "(fs (^ x 2))", "(* (* 2 x) (fs^1 (^ x 2)))"),
     ("y", "(fs (^ x 2))", "0"),
-    ("x", "(* (fs x) (fc x))", "(+ (* (fs^1 x) (fc x)) (* (fs x) (fc^1 x)))"),
+    (
+        "x",
+        "(* (fs x) (fc x))",
+        "(+ (* (fs^1 x) (fc x)) (* (fs x) (fc^1 x)))",
+    ),
 ];
 
 fn same(arena: &mut Arena, got: Id, expected: &str) -> bool {
@@ -150,7 +154,10 @@ fn derivatives_match_central_differences() {
 struct Lcg(u64);
 impl Lcg {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         self.0 >> 33
     }
     fn pick(&mut self, n: usize) -> usize {
@@ -227,7 +234,9 @@ fn cse_leaves_the_model_outputs_unchanged() {
     }
     let arena = model.arena();
     let program = schedule(arena, &outputs);
-    let values: Vec<f64> = (0..arena.symbol_count()).map(|k| 0.01 + 0.013 * k as f64).collect();
+    let values: Vec<f64> = (0..arena.symbol_count())
+        .map(|k| 0.01 + 0.013 * k as f64)
+        .collect();
     let scheduled = eval_program(arena, &program, &values, analytic_by_series);
     for (k, &output) in outputs.iter().enumerate() {
         let tree = eval_tree(arena, output, &values, analytic_by_series);

@@ -1,0 +1,360 @@
+//! The safe controller of the paper (§III, MODEL.md §5): the PD+ nominal torque, one HOCBF
+//! row `A τ ≥ b` per barrier, and the safety-filter QP, as one allocation-free [`tick`].
+//!
+//! For every barrier `b_k` (relative degree 2, class-K gains `p1`, `p2`) the HOCBF condition
+//! `b̈ + (p1 + p2) ḃ + p1 p2 b ≥ 0` with `ḃ = J q̇`, `b̈ = J q̈ + J̇ q̇` and
+//! `q̈ = M⁻¹ (τ − n)`, `n = h + G + K q + D q̇`, is linear in `τ`:
+//!
+//! ```text
+//! (J M⁻¹) τ ≥ J M⁻¹ n − J̇ q̇ − (p1 + p2) J q̇ − p1 p2 b
+//! ```
+//!
+//! The tick is a pure function of (model, controller workspace, state, reference): it reads
+//! no clock, touches no port and prints nothing, so simulation and hardware share it.
+
+use crate::dynamics::{
+    DynamicsError, DynamicsWorkspace, bias_and_gravity, factor_mass_matrix, mass_matrix,
+    solve_mass_matrix, update_joints,
+};
+use crate::model::Model;
+use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
+
+/// What the controller is asked to do: gains and whether the safety filter runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ControllerSettings {
+    /// `K_P`, row-major `nq × nq` [N/m]. Paper: `5·I`.
+    pub kp: Vec<f64>,
+    /// `K_D`, row-major `nq × nq` [N·s/m]. Paper: `1·I`.
+    pub kd: Vec<f64>,
+    /// HOCBF class-K gains `[p1, p2]` [1/s]. Default: the robot file's `[barrier]` gains.
+    pub barrier_gains: [f64; 2],
+    /// Run the safety filter (`false`: plain PD+, `τ = τ_nom`). Default `true`.
+    pub filter: bool,
+    /// Settings of the safety QP.
+    pub qp: QpSettings,
+}
+
+impl ControllerSettings {
+    /// The paper's simulation gains (`K_P = 5·I`, `K_D = 1·I`) with the robot's barrier gains
+    /// and the filter on.
+    pub fn paper(model: &Model) -> ControllerSettings {
+        ControllerSettings {
+            kp: scaled_identity(model.nq(), 5.0),
+            kd: scaled_identity(model.nq(), 1.0),
+            barrier_gains: model.robot.barrier_gains,
+            filter: true,
+            qp: QpSettings::default(),
+        }
+    }
+
+    /// Checks sizes and values for a model with `nq` coordinates.
+    pub fn validate(&self, nq: usize) -> Result<(), ControllerError> {
+        for (field, matrix) in [("kp", &self.kp), ("kd", &self.kd)] {
+            if matrix.len() != nq * nq {
+                return Err(ControllerError::Setting {
+                    field,
+                    reason: format!("has {} entries, expected {nq}×{nq}", matrix.len()),
+                });
+            }
+            if let Some(k) = matrix.iter().position(|v| !v.is_finite()) {
+                return Err(ControllerError::Setting {
+                    field,
+                    reason: format!("entry {} is {}; gains must be finite", k + 1, matrix[k]),
+                });
+            }
+        }
+        for (field, gain) in [("p1", self.barrier_gains[0]), ("p2", self.barrier_gains[1])] {
+            if !(gain.is_finite() && gain > 0.0) {
+                return Err(ControllerError::Setting {
+                    field,
+                    reason: format!("must be finite and > 0 1/s, got {gain}"),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `c·I` of size `n × n`, row-major.
+pub fn scaled_identity(n: usize, c: f64) -> Vec<f64> {
+    let mut out = vec![0.0; n * n];
+    for i in 0..n {
+        out[i * n + i] = c;
+    }
+    out
+}
+
+/// Why a controller could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum ControllerError {
+    /// A setting has the wrong size or value.
+    #[error("controller setting `{field}` {reason}")]
+    Setting { field: &'static str, reason: String },
+    /// The safety QP could not be set up.
+    #[error("safety QP: {0}")]
+    Qp(#[from] QpSetupError),
+}
+
+/// The reference the nominal controller tracks: `(q̄, q̄̇, q̄̈)`, each of length `nq`.
+#[derive(Clone, Copy, Debug)]
+pub struct Reference<'a> {
+    /// Set point `q̄`.
+    pub q: &'a [f64],
+    /// `q̄̇` (zero for regulation).
+    pub qd: &'a [f64],
+    /// `q̄̈` (zero for regulation).
+    pub qdd: &'a [f64],
+}
+
+/// Outcome of one tick. Every variant leaves a finite command in [`Controller::tau`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TickStatus {
+    /// Filter off: `τ = τ_nom`.
+    Unfiltered,
+    /// The QP was solved: `τ` satisfies every HOCBF row.
+    Filtered,
+    /// The rows had no common point: `τ` solves the slack-relaxed QP;
+    /// [`Controller::qp_report`] lists the relaxed barriers.
+    Relaxed,
+    /// The QP gave no verified solution: `τ` is the safe command (zero).
+    QpFailed,
+    /// The state or reference was not finite, or the dynamics failed: `τ` is the safe
+    /// command (zero).
+    InvalidState(InvalidState),
+}
+
+impl TickStatus {
+    /// Whether `τ` is the safe fallback rather than a computed command.
+    pub fn is_fallback(self) -> bool {
+        matches!(self, TickStatus::QpFailed | TickStatus::InvalidState(_))
+    }
+}
+
+/// Why the controller could not evaluate the state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InvalidState {
+    /// `q`, `q̇` or the reference had a NaN or infinite entry, or a wrong length.
+    NonFinite,
+    /// `M(q)` was not positive definite.
+    MassMatrix,
+    /// The model produced a non-finite barrier, torque or row.
+    NonFiniteModel,
+}
+
+/// Preallocated workspace of the controller for one model; [`tick`] writes into it.
+pub struct Controller {
+    settings: ControllerSettings,
+    nq: usize,
+    nb: usize,
+    dynamics: DynamicsWorkspace,
+    barriers: Vec<f64>,
+    jacobian: Vec<f64>,
+    jdot_qd: Vec<f64>,
+    /// HOCBF rows `A = J M⁻¹`, row-major `nb × nq`, and right-hand sides.
+    rows: Vec<f64>,
+    rhs: Vec<f64>,
+    /// `n = h + G + K q + D q̇`, then `M⁻¹ n`.
+    drift: Vec<f64>,
+    scratch: Vec<f64>,
+    tau_nom: Vec<f64>,
+    tau: Vec<f64>,
+    qp: SafetyQp,
+}
+
+impl Controller {
+    /// A controller for `model` with validated `settings`.
+    pub fn new(model: &Model, settings: ControllerSettings) -> Result<Controller, ControllerError> {
+        let (nq, nb) = (model.nq(), model.nb());
+        settings.validate(nq)?;
+        let qp = SafetyQp::new(nq, nb, settings.qp)?;
+        Ok(Controller {
+            settings,
+            nq,
+            nb,
+            dynamics: DynamicsWorkspace::new(model),
+            barriers: vec![0.0; nb],
+            jacobian: vec![0.0; nb * nq],
+            jdot_qd: vec![0.0; nb],
+            rows: vec![0.0; nb * nq],
+            rhs: vec![0.0; nb],
+            drift: vec![0.0; nq],
+            scratch: vec![0.0; nq],
+            tau_nom: vec![0.0; nq],
+            tau: vec![0.0; nq],
+            qp,
+        })
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> &ControllerSettings {
+        &self.settings
+    }
+
+    /// Turns the safety filter on or off.
+    pub fn set_filter(&mut self, on: bool) {
+        self.settings.filter = on;
+    }
+
+    /// The command of the last tick [N]: the one to apply.
+    pub fn tau(&self) -> &[f64] {
+        &self.tau
+    }
+
+    /// The nominal PD+ torque of the last tick [N] (NaN after an invalid state).
+    pub fn tau_nom(&self) -> &[f64] {
+        &self.tau_nom
+    }
+
+    /// Barrier values of the last tick [m] (NaN after an invalid state).
+    pub fn barriers(&self) -> &[f64] {
+        &self.barriers
+    }
+
+    /// Barrier Jacobian of the last tick, row-major `nb × nq`.
+    pub fn barrier_jacobian(&self) -> &[f64] {
+        &self.jacobian
+    }
+
+    /// HOCBF rows `A = J M⁻¹` (row-major `nb × nq`) and right-hand sides `b` of the last
+    /// tick: the filtered `τ` satisfies `A τ ≥ b`.
+    pub fn constraints(&self) -> (&[f64], &[f64]) {
+        (&self.rows, &self.rhs)
+    }
+
+    /// Report of the last QP solve (statuses, iterations, relaxed rows).
+    pub fn qp_report(&self) -> &QpReport {
+        self.qp.report()
+    }
+
+    /// The dynamics evaluated at the last tick's state (`M`, `h`, `G`).
+    pub fn dynamics(&self) -> &DynamicsWorkspace {
+        &self.dynamics
+    }
+
+    fn fallback(&mut self, why: InvalidState) -> TickStatus {
+        self.tau.fill(0.0);
+        self.tau_nom.fill(f64::NAN);
+        self.barriers.fill(f64::NAN);
+        TickStatus::InvalidState(why)
+    }
+}
+
+fn all_finite(x: &[f64]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// One control tick at state `(q, q̇)` toward `reference`: evaluates `M`, `h`, `G`, the
+/// barriers with their Jacobians and `J̇ q̇`, the PD+ torque
+/// `τ_nom = M q̄̈ + h + G + K q̄ + D q̄̇ + K_P (q̄ − q) + K_D (q̄̇ − q̇)` (MODEL.md §5) and,
+/// with the filter on, the HOCBF rows and the QP. The command lands in
+/// [`Controller::tau`]; it is always finite (zero, the unactuated robot, when no computed
+/// command can be trusted). Allocates nothing.
+pub fn tick(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+    reference: Reference<'_>,
+) -> TickStatus {
+    let nq = controller.nq;
+    let sizes = [
+        q.len(),
+        qd.len(),
+        reference.q.len(),
+        reference.qd.len(),
+        reference.qdd.len(),
+    ];
+    if sizes.iter().any(|&len| len != nq)
+        || !(all_finite(q) && all_finite(qd))
+        || !(all_finite(reference.q) && all_finite(reference.qd) && all_finite(reference.qdd))
+    {
+        return controller.fallback(InvalidState::NonFinite);
+    }
+
+    let ws = &mut controller.dynamics;
+    update_joints(model, ws, q, qd);
+    mass_matrix(model, ws);
+    bias_and_gravity(model, ws, qd);
+    if let Err(error) = factor_mass_matrix(ws) {
+        return controller.fallback(match error {
+            DynamicsError::NotPositiveDefinite => InvalidState::MassMatrix,
+            DynamicsError::NonFinite => InvalidState::NonFiniteModel,
+        });
+    }
+    model.generated.barrier_terms(
+        &model.params,
+        q,
+        qd,
+        &mut controller.barriers,
+        &mut controller.jacobian,
+        &mut controller.jdot_qd,
+    );
+
+    // τ_nom, and n = h + G + K q + D q̇.
+    let settings = &controller.settings;
+    let ws = &controller.dynamics;
+    for i in 0..nq {
+        let row = i * nq..(i + 1) * nq;
+        let inertial = dot(&ws.mass_matrix[row.clone()], reference.qdd);
+        let mut feedback = 0.0;
+        for j in 0..nq {
+            feedback += settings.kp[i * nq + j] * (reference.q[j] - q[j])
+                + settings.kd[i * nq + j] * (reference.qd[j] - qd[j]);
+        }
+        controller.tau_nom[i] = inertial
+            + ws.bias[i]
+            + ws.gravity[i]
+            + model.stiffness[i] * reference.q[i]
+            + model.damping[i] * reference.qd[i]
+            + feedback;
+        controller.drift[i] =
+            ws.bias[i] + ws.gravity[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
+    }
+    if !(all_finite(&controller.tau_nom)
+        && all_finite(&controller.drift)
+        && all_finite(&controller.barriers)
+        && all_finite(&controller.jacobian)
+        && all_finite(&controller.jdot_qd))
+    {
+        return controller.fallback(InvalidState::NonFiniteModel);
+    }
+    if !settings.filter {
+        controller.tau.copy_from_slice(&controller.tau_nom);
+        return TickStatus::Unfiltered;
+    }
+
+    // Rows A_k = (M⁻¹ J_kᵀ)ᵀ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k.
+    let [p1, p2] = settings.barrier_gains;
+    solve_mass_matrix(ws, &mut controller.drift);
+    for k in 0..controller.nb {
+        let jacobian_row = &controller.jacobian[k * nq..(k + 1) * nq];
+        controller.scratch.copy_from_slice(jacobian_row);
+        solve_mass_matrix(ws, &mut controller.scratch);
+        controller.rows[k * nq..(k + 1) * nq].copy_from_slice(&controller.scratch);
+        controller.rhs[k] = dot(jacobian_row, &controller.drift)
+            - controller.jdot_qd[k]
+            - (p1 + p2) * dot(jacobian_row, qd)
+            - p1 * p2 * controller.barriers[k];
+    }
+    if !(all_finite(&controller.rows) && all_finite(&controller.rhs)) {
+        return controller.fallback(InvalidState::NonFiniteModel);
+    }
+    let report = controller.qp.solve(
+        &controller.tau_nom,
+        &controller.rows,
+        &controller.rhs,
+        &mut controller.tau,
+    );
+    match report.status {
+        QpStatus::Solved => TickStatus::Filtered,
+        QpStatus::Relaxed => TickStatus::Relaxed,
+        QpStatus::Failed => {
+            controller.tau.fill(0.0);
+            TickStatus::QpFailed
+        }
+    }
+}
