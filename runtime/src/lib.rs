@@ -10,6 +10,7 @@ pub mod dynamics;
 pub mod inspect;
 pub mod integrator;
 pub mod model;
+pub mod plant;
 pub mod protocol;
 pub mod qp;
 pub mod spatial;

@@ -1,0 +1,196 @@
+//! The simulated robot: the generated dynamics as a first-order system with the generalized
+//! force held constant (zero-order hold), advanced by the Rosenbrock-W integrator.
+//!
+//! The state is `x = (q, q̇)`. The integrator's `W = I − γh J̃` uses the mechanical
+//! approximation `J̃ = [[0, I], [−M⁻¹K, −M⁻¹D]]` with `M` evaluated at each step's start: the
+//! stiff part of this plant is exactly its linear `K`, `D` (MODEL.md §7), and Coriolis,
+//! gravity and `∂M/∂q` terms, which `J̃` omits, are not stiff (measurements in
+//! [`crate::integrator`]'s module docs). Nothing allocates after [`Plant::new`].
+
+use crate::dynamics::{
+    DynamicsError, DynamicsWorkspace, forward_dynamics, mass_matrix, update_joints,
+};
+use crate::integrator::{
+    IntegratorError, MechanicalW, OdeSystem, Rosenbrock, Stats, Tolerances, WSolve,
+};
+use crate::model::Model;
+
+/// The plant's equations `ẋ = (q̇, M⁻¹(τ − h − G − K q − D q̇))` for a held `τ`.
+pub struct PlantSystem<'m> {
+    model: &'m Model,
+    dynamics: DynamicsWorkspace,
+    tau: Vec<f64>,
+    qdd: Vec<f64>,
+    w: MechanicalW,
+    last_error: Option<DynamicsError>,
+}
+
+impl<'m> PlantSystem<'m> {
+    /// The equations of `model` with `τ = 0`.
+    pub fn new(model: &'m Model) -> PlantSystem<'m> {
+        let nq = model.nq();
+        let mut w = MechanicalW::new(nq);
+        for (i, (k, d)) in model.stiffness.iter().zip(&model.damping).enumerate() {
+            w.stiffness_mut()[i * nq + i] = *k;
+            w.damping_mut()[i * nq + i] = *d;
+        }
+        PlantSystem {
+            model,
+            dynamics: DynamicsWorkspace::new(model),
+            tau: vec![0.0; nq],
+            qdd: vec![0.0; nq],
+            w,
+            last_error: None,
+        }
+    }
+
+    /// The held generalized force [N], length `nq`.
+    pub fn tau_mut(&mut self) -> &mut [f64] {
+        &mut self.tau
+    }
+
+    /// Why the last right-hand side failed, if it did.
+    pub fn last_error(&self) -> Option<DynamicsError> {
+        self.last_error
+    }
+}
+
+impl OdeSystem for PlantSystem<'_> {
+    fn dim(&self) -> usize {
+        2 * self.model.nq()
+    }
+
+    fn rhs(&mut self, _t: f64, x: &[f64], dx: &mut [f64]) -> bool {
+        let nq = self.model.nq();
+        let (q, qd) = x.split_at(nq);
+        match forward_dynamics(
+            self.model,
+            &mut self.dynamics,
+            q,
+            qd,
+            &self.tau,
+            &mut self.qdd,
+        ) {
+            Ok(()) => {
+                dx[..nq].copy_from_slice(qd);
+                dx[nq..].copy_from_slice(&self.qdd);
+                self.last_error = None;
+                true
+            }
+            Err(error) => {
+                self.last_error = Some(error);
+                false
+            }
+        }
+    }
+}
+
+impl WSolve for PlantSystem<'_> {
+    fn prepare_w(&mut self, _t: f64, x: &[f64], gamma_h: f64) -> bool {
+        let nq = self.model.nq();
+        let (q, qd) = x.split_at(nq);
+        update_joints(self.model, &mut self.dynamics, q, qd);
+        mass_matrix(self.model, &mut self.dynamics);
+        self.w
+            .mass_matrix_mut()
+            .copy_from_slice(&self.dynamics.mass_matrix);
+        self.w.factor(gamma_h)
+    }
+
+    fn solve_w(&mut self, r: &mut [f64]) -> bool {
+        self.w.solve(r)
+    }
+}
+
+/// The simulated robot: its state, time and integrator.
+pub struct Plant<'m> {
+    system: PlantSystem<'m>,
+    integrator: Rosenbrock,
+    state: Vec<f64>,
+    time: f64,
+    stats: Stats,
+}
+
+impl<'m> Plant<'m> {
+    /// A plant at rest at `q = 0`, `t = 0`, integrating with `tolerances` (validated).
+    pub fn new(model: &'m Model, tolerances: Tolerances) -> Result<Plant<'m>, IntegratorError> {
+        let nq = model.nq();
+        Ok(Plant {
+            system: PlantSystem::new(model),
+            integrator: Rosenbrock::new(2 * nq, tolerances)?,
+            state: vec![0.0; 2 * nq],
+            time: 0.0,
+            stats: Stats::default(),
+        })
+    }
+
+    /// Number of generalized coordinates.
+    pub fn nq(&self) -> usize {
+        self.state.len() / 2
+    }
+
+    /// Sets the state `(q, q̇)` and the time [s], and restarts the step-size control.
+    pub fn reset(&mut self, q: &[f64], qd: &[f64], time: f64) {
+        let nq = self.nq();
+        self.state[..nq].copy_from_slice(q);
+        self.state[nq..].copy_from_slice(qd);
+        self.time = time;
+        self.integrator.reset();
+    }
+
+    /// Generalized coordinates `q`.
+    pub fn q(&self) -> &[f64] {
+        &self.state[..self.nq()]
+    }
+
+    /// Generalized velocities `q̇`.
+    pub fn qd(&self) -> &[f64] {
+        &self.state[self.nq()..]
+    }
+
+    /// Simulated time [s].
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Integrator work since construction.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+
+    /// The held generalized force [N].
+    pub fn tau_mut(&mut self) -> &mut [f64] {
+        self.system.tau_mut()
+    }
+
+    /// Why the dynamics failed in the last failed step, if they did.
+    pub fn last_dynamics_error(&self) -> Option<DynamicsError> {
+        self.system.last_error()
+    }
+
+    /// Advances the state by `dt ≥ 0` seconds with the held `τ`. On error the state is the
+    /// last accepted one, at [`Plant::time`].
+    pub fn advance(&mut self, dt: f64) -> Result<(), IntegratorError> {
+        let (t0, t1) = (self.time, self.time + dt);
+        let result = self
+            .integrator
+            .integrate(&mut self.system, t0, t1, &mut self.state);
+        match result {
+            Ok(stats) => {
+                self.stats.accumulate(&stats);
+                self.time = t1;
+                Ok(())
+            }
+            Err(error) => {
+                if let IntegratorError::NonFinite { t }
+                | IntegratorError::StepTooSmall { t, .. }
+                | IntegratorError::TooManySteps { t }
+                | IntegratorError::WFailed { t } = error
+                {
+                    self.time = t;
+                }
+                Err(error)
+            }
+        }
+    }
+}
