@@ -74,10 +74,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 None => vec![0.0; nq],
             };
             let report = model_report(&model, &q, &qd);
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
-            );
+            say(&serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
             Ok(())
         }
         Command::Simulate {
@@ -122,12 +119,12 @@ fn run_simulation(
     };
     let written = write_outputs(out, &main, comparison.as_ref(), model.generated.corners())
         .map_err(|e| e.to_string())?;
-    println!("{}", one_line(&main.summary));
+    say(&one_line(&main.summary));
     if let Some(pd) = &comparison {
-        println!("{}", one_line(&pd.summary));
+        say(&one_line(&pd.summary));
     }
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
-    println!("wrote {}", names.join(", "));
+    say(&format!("wrote {}", names.join(", ")));
     match (
         &main.summary.stopped,
         comparison.as_ref().and_then(|r| r.summary.stopped.as_ref()),
@@ -135,6 +132,12 @@ fn run_simulation(
         (None, None) => Ok(()),
         _ => Err("the simulation stopped early (see the summary above)".to_string()),
     }
+}
+
+/// Prints a line on standard output; a closed pipe (`softcbf … | head`) is not an error.
+fn say(text: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stdout().lock(), "{text}");
 }
 
 fn main() -> ExitCode {
