@@ -82,19 +82,20 @@ fn tensions_outside_the_limits_are_clamped_and_counted() {
 #[test]
 fn servo_angles_of_a_hand_computed_bend() {
     let (_, map) = example();
-    // Module 1 bent Δx = 0.01 m: ℓ_k = L0 − 0.01 cos ψ_k, L0 = ℓ_k0 = 0.06, ρ = 0.02,
-    // signs (1, −1, 1), zero angles π: θ_k = π + (ℓ_k0 − ℓ_k)/(ρ s_k) = π + 0.5 cos ψ_k / s_k.
+    // Module 1 bent Δx = 0.01 m: ℓ_k = L0 − 0.01 cos ψ_k, L0 = ℓ_k0 = 0.06, ρ = 0.045,
+    // signs (1, −1, 1), zero angles π: θ_k = π + (ℓ_k0 − ℓ_k)/(ρ s_k) = π + (0.01/ρ) cos ψ_k / s_k.
     let q = [0.01, 0.0, 0.0, 0.0, 0.0, -0.02];
     let mut angles = [0.0; 6];
     map.angles_from_q(&q, &mut angles);
     close(angles[0], PI, 1e-15);
-    close(angles[1], PI + 0.5 * 3f64.sqrt() / 2.0, 1e-14);
-    close(angles[2], PI + 0.5 * 3f64.sqrt() / 2.0, 1e-14);
-    // Module 2 compressed δL = −0.02: every tendon 0.02 shorter, wound by 0.02/ρ = 1 rad
-    // in its winding direction (signs 1, 1, −1).
-    close(angles[3], PI + 1.0, 1e-14);
-    close(angles[4], PI + 1.0, 1e-14);
-    close(angles[5], PI - 1.0, 1e-14);
+    let bend = 0.01 / 0.045 * 3f64.sqrt() / 2.0;
+    close(angles[1], PI + bend, 1e-14);
+    close(angles[2], PI + bend, 1e-14);
+    // Module 2 compressed δL = −0.02: every tendon 0.02 shorter, wound by 0.02/ρ rad in its
+    // winding direction (signs 1, 1, −1).
+    close(angles[3], PI + 0.02 / 0.045, 1e-14);
+    close(angles[4], PI + 0.02 / 0.045, 1e-14);
+    close(angles[5], PI - 0.02 / 0.045, 1e-14);
     let mut back = [0.0; 6];
     map.q_from_angles(&angles, &mut back);
     for k in 0..6 {
@@ -134,13 +135,13 @@ fn configurations_and_velocities_round_trip() {
 #[test]
 fn currents_and_registers_by_hand() {
     let (_, map) = example();
-    // 1 N at 0.08 N/mA is 12.5 mA = 4.647 units of 2.69 mA → 5, with the servo's sign.
-    assert_eq!(map.current_from_tension(0, 1.0), 5);
-    assert_eq!(map.current_from_tension(1, 1.0), -5);
-    assert_eq!(map.current_from_tension(5, 40.0), -186); // 40/0.08/2.69 = 185.87
-    close(map.tension_from_current(0, 5), 5.0 * 2.69 * 0.08, 1e-15);
-    close(map.tension_from_current(1, -5), 5.0 * 2.69 * 0.08, 1e-15);
-    close(map.tension_from_current(0, -5), -1.076, 1e-12);
+    // 1 N at 0.04 N/mA is 25 mA = 9.294 units of 2.69 mA → 9, with the servo's sign.
+    assert_eq!(map.current_from_tension(0, 1.0), 9);
+    assert_eq!(map.current_from_tension(1, 1.0), -9);
+    assert_eq!(map.current_from_tension(5, 40.0), -372); // 40/0.04/2.69 = 371.75
+    close(map.tension_from_current(0, 5), 5.0 * 2.69 * 0.04, 1e-15);
+    close(map.tension_from_current(1, -5), 5.0 * 2.69 * 0.04, 1e-15);
+    close(map.tension_from_current(0, -5), -0.538, 1e-12);
     // Saturation at the register's range.
     assert_eq!(map.current_from_tension(0, 1e9), i16::MAX);
     // Present Position 2048 is 180°; one velocity unit is 0.229 rev/min.

@@ -11,3 +11,6 @@
 pub mod control_table;
 pub mod emulator;
 pub mod mapping;
+pub mod run_loop;
+pub mod servo_io;
+pub mod signal;
