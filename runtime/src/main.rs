@@ -35,6 +35,10 @@ enum Command {
         #[arg(long, allow_hyphen_values = true)]
         qd: Option<String>,
     },
+    /// Emulate the robot's servos on a pseudo-terminal (prints the port to connect to).
+    Emulate(softcbf::hardware::cli::EmulateArgs),
+    /// Run the safe controller on the robot's servos (or on `softcbf emulate`).
+    Run(softcbf::hardware::cli::RunArgs),
 }
 
 fn run(cli: Cli) -> Result<(), String> {
@@ -58,6 +62,8 @@ fn run(cli: Cli) -> Result<(), String> {
             );
             Ok(())
         }
+        Command::Emulate(args) => softcbf::hardware::cli::emulate(args),
+        Command::Run(args) => softcbf::hardware::cli::run(args),
     }
 }
 

@@ -27,10 +27,13 @@ fn example() -> Robot {
 /// One loop against one emulator at a time: the timing of the loop is part of the result.
 static SERIAL: Mutex<()> = Mutex::new(());
 
+/// One logged row: time, `q`, barriers, extra columns.
+type Row = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// Rows kept in memory.
 #[derive(Default)]
 struct MemoryLog {
-    rows: Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>)>,
+    rows: Vec<Row>,
     flushed: bool,
 }
 

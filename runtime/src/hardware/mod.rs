@@ -8,8 +8,10 @@
 //! - [`run_loop`]: `softcbf run`, the fixed-rate control loop and its log.
 //! - [`signal`]: Ctrl-C as a flag the loops poll.
 
+pub mod cli;
 pub mod control_table;
 pub mod emulator;
+pub mod log;
 pub mod mapping;
 pub mod run_loop;
 pub mod servo_io;
