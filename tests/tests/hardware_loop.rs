@@ -1,6 +1,9 @@
 //! The control loop against the servo emulator over a pseudo-terminal, as `softcbf run`
 //! and `softcbf emulate` use them: the paper's hardware set point on the example robot,
 //! fault injection, and the safe stop. Checks use the emulator's own record of the bus.
+//!
+//! The emulator steps the plant in real time: run these optimized, as CI does
+//! (`cargo test --release`); an unoptimized plant falls behind the wall clock.
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -66,16 +69,30 @@ fn run_against_emulator(faults: Faults, duration: f64) -> Outcome {
     let shared = Arc::new(Mutex::new(EmulatorLog::default()));
     let mut settings = EmulatorSettings::new(1_000_000);
     settings.faults = faults;
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let server = {
         let (robot, stop, shared) = (robot.clone(), stop.clone(), shared.clone());
-        thread::spawn(move || emulator::serve(&robot, &settings, &mut master, &stop, Some(&shared)))
+        thread::spawn(move || {
+            let mut ready = || ready_tx.send(()).unwrap();
+            emulator::serve(
+                &robot,
+                &settings,
+                &mut master,
+                &stop,
+                &mut ready,
+                Some(&shared),
+            )
+        })
     };
+    ready_rx.recv().expect("the emulator starts serving");
     let port = serialport::new(&path, 1_000_000)
         .timeout(Duration::from_millis(1))
         .open_native()
         .unwrap();
     let hardware = robot.hardware.clone().unwrap();
-    let mut bus = Bus::new(port, Duration::from_secs_f64(hardware.reply_timeout));
+    // An unoptimized emulator can take longer than the file's 10 ms to step its plant.
+    let timeout = if cfg!(debug_assertions) { 0.1 } else { hardware.reply_timeout };
+    let mut bus = Bus::new(port, Duration::from_secs_f64(timeout));
     let map = TendonMap::new(&robot).unwrap();
     let model = Model::new(robot).unwrap();
     let settings = RunSettings {

@@ -129,20 +129,22 @@ pub fn emulate(args: EmulateArgs) -> Result<(), String> {
         .iter()
         .map(|id| id.to_string())
         .collect();
-    println!(
-        "softcbf emulate: servos {} of `{}` at {baud} bit/s",
-        ids.join(", "),
-        robot.name
-    );
-    println!("port: {path}");
-    println!(
-        "connect with: softcbf run --robot {} --port {path}",
-        args.robot.display()
-    );
-    println!("Ctrl-C to stop");
-    let _ = std::io::stdout().flush();
-    let log =
-        emulator::serve(&robot, &settings, &mut master, stop, None).map_err(|e| e.to_string())?;
+    let mut announce = || {
+        println!(
+            "softcbf emulate: servos {} of `{}` at {baud} bit/s",
+            ids.join(", "),
+            robot.name
+        );
+        println!("port: {path}");
+        println!(
+            "connect with: softcbf run --robot {} --port {path}",
+            args.robot.display()
+        );
+        println!("Ctrl-C to stop");
+        let _ = std::io::stdout().flush();
+    };
+    let log = emulator::serve(&robot, &settings, &mut master, stop, &mut announce, None)
+        .map_err(|e| e.to_string())?;
     drop(slave);
     println!(
         "emulator stopped: {} requests; status packets sent {}, delayed {}, dropped {}, corrupted {}, silent {}",

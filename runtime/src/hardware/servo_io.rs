@@ -2,11 +2,13 @@
 //! policy and sync write, and the safe stop, over a [`Bus`] on a [`ServoPort`].
 //!
 //! A reading is accepted only when every servo's status packet arrived complete, with a
-//! valid CRC and no error number, in answer to this attempt's request: before each request
-//! the port's input is discarded, and after a failed attempt the line is drained until it
-//! has been quiet for the reply timeout, so that late packets of the failed attempt are not
-//! taken for the retry's. (A packet later than about twice the reply timeout could still be
-//! mistaken; at 1 Mbit/s a reply takes 0.2 ms, the default timeout is 10 ms.)
+//! valid CRC and no error number, in answer to this attempt's request. Three defences keep
+//! a late packet of an earlier request from being taken for this one's: the port's input is
+//! discarded before each request; after a failed attempt the line is drained until it has
+//! been quiet for the reply timeout; and successive sync reads cycle through
+//! [`READ_VARIANTS`] block lengths (the state block with 0–3 bytes before it), so a status
+//! packet answering any of the previous three requests has the wrong length and is
+//! rejected. A stale packet would have to be four requests late to pass.
 
 use std::io::{self, ErrorKind, Read};
 use std::time::{Duration, Instant};
@@ -104,6 +106,9 @@ pub enum StartError {
     },
 }
 
+/// Number of distinct sync-read block lengths cycled through.
+pub const READ_VARIANTS: u16 = 4;
+
 /// Preallocated buffers for the per-tick bus traffic of one robot.
 pub struct ServoIo {
     ids: Vec<u8>,
@@ -111,6 +116,7 @@ pub struct ServoIo {
     states: Vec<ServoState>,
     goal: Vec<[u8; 2]>,
     attempts: u32,
+    requests: u16,
 }
 
 impl ServoIo {
@@ -119,10 +125,11 @@ impl ServoIo {
         let n = ids.len();
         ServoIo {
             ids,
-            raw: vec![0; n * usize::from(table::STATE_LENGTH)],
+            raw: vec![0; n * usize::from(table::STATE_LENGTH + READ_VARIANTS - 1)],
             states: vec![ServoState::default(); n],
             goal: vec![[0; 2]; n],
             attempts: 0,
+            requests: 0,
         }
     }
 
@@ -153,16 +160,17 @@ impl ServoIo {
         loop {
             self.attempts += 1;
             bus.port_mut().discard_input()?;
-            match bus.sync_read(
-                table::STATE_ADDRESS,
-                table::STATE_LENGTH,
-                &self.ids,
-                &mut self.raw,
-            ) {
+            // The state block with `extra` bytes before it: a different length than the
+            // previous three requests'.
+            let extra = self.requests % READ_VARIANTS;
+            self.requests = self.requests.wrapping_add(1);
+            let len = table::STATE_LENGTH + extra;
+            let raw = &mut self.raw[..self.ids.len() * usize::from(len)];
+            match bus.sync_read(table::STATE_ADDRESS - extra, len, &self.ids, raw) {
                 Ok(()) => {
-                    let n = usize::from(table::STATE_LENGTH);
-                    for (state, bytes) in self.states.iter_mut().zip(self.raw.chunks_exact(n)) {
-                        *state = ServoState::from_bytes(bytes);
+                    let len = usize::from(len);
+                    for (state, bytes) in self.states.iter_mut().zip(raw.chunks_exact(len)) {
+                        *state = ServoState::from_bytes(&bytes[usize::from(extra)..]);
                     }
                     return Ok(());
                 }

@@ -218,12 +218,14 @@ fn check(settings: &EmulatorSettings) -> Result<(), EmulatorError> {
 }
 
 /// Answers Protocol 2.0 on `port` as `robot`'s servos until `stop` is set (checked at
-/// least every read timeout of the port). `log`, if given, is updated after every request.
+/// least every read timeout of the port). `ready` is called once the robot has settled and
+/// requests are answered; `log`, if given, is updated after every request.
 pub fn serve<P: Read + Write>(
     robot: &Robot,
     settings: &EmulatorSettings,
     port: &mut P,
     stop: &AtomicBool,
+    ready: &mut dyn FnMut(),
     log: Option<&Mutex<EmulatorLog>>,
 ) -> Result<EmulatorLog, EmulatorError> {
     check(settings)?;
@@ -243,6 +245,7 @@ pub fn serve<P: Read + Write>(
     let mut replies = Vec::new();
     let mut out = Vec::with_capacity(256);
     let mut draws = Draws(settings.faults.seed);
+    ready();
     let start = Instant::now();
     let mut bus_free = start;
     while !stop.load(Ordering::Relaxed) {
@@ -274,13 +277,11 @@ pub fn serve<P: Read + Write>(
             for reply in &replies {
                 let fate = fate_of(reply, &settings.faults, request_end - start, &mut draws);
                 own.fates[fate as usize] += 1;
-                if packet.instruction == Instruction::SyncRead
-                    && reply.params.len() == usize::from(table::STATE_LENGTH)
-                {
+                if let Some(state) = state_block(&packet, &reply.params) {
                     states.push(StateReply {
                         id: reply.id,
                         fate,
-                        state: ServoState::from_bytes(&reply.params),
+                        state,
                     });
                 }
                 if matches!(fate, ReplyFate::Dropped | ReplyFate::Silent) {
@@ -312,6 +313,18 @@ pub fn serve<P: Read + Write>(
         }
     }
     Ok(own)
+}
+
+/// The state block inside a sync-read reply that covers it (the loop reads it with 0–3
+/// bytes before it).
+fn state_block(packet: &PacketBuf, params: &[u8]) -> Option<ServoState> {
+    if packet.instruction != Instruction::SyncRead {
+        return None;
+    }
+    let (addr, len, _) = crate::protocol::parse_sync_read(&packet.params)?;
+    let skip = table::STATE_ADDRESS.checked_sub(addr)?;
+    (addr + len == table::STATE_ADDRESS + table::STATE_LENGTH && params.len() == usize::from(len))
+        .then(|| ServoState::from_bytes(&params[usize::from(skip)..]))
 }
 
 fn fate_of(reply: &Reply, faults: &Faults, since_start: Duration, draws: &mut Draws) -> ReplyFate {
