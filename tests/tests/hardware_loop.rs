@@ -60,8 +60,12 @@ struct Outcome {
 
 /// Runs the emulator in a thread and the loop on the other end of a pty.
 fn run_against_emulator(faults: Faults, duration: f64) -> Outcome {
+    run_with(example(), faults, duration)
+}
+
+/// Runs the emulator of `robot` in a thread and the loop on the other end of a pty.
+fn run_with(robot: Robot, faults: Faults, duration: f64) -> Outcome {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let robot = example();
     let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal");
     master.set_timeout(Duration::from_millis(20)).unwrap();
     let path = slave.name().unwrap();
@@ -91,7 +95,11 @@ fn run_against_emulator(faults: Faults, duration: f64) -> Outcome {
         .unwrap();
     let hardware = robot.hardware.clone().unwrap();
     // An unoptimized emulator can take longer than the file's 10 ms to step its plant.
-    let timeout = if cfg!(debug_assertions) { 0.1 } else { hardware.reply_timeout };
+    let timeout = if cfg!(debug_assertions) {
+        0.1
+    } else {
+        hardware.reply_timeout
+    };
     let mut bus = Bus::new(port, Duration::from_secs_f64(timeout));
     let map = TendonMap::new(&robot).unwrap();
     let model = Model::new(robot).unwrap();
@@ -201,10 +209,13 @@ fn assert_commands_from_fresh_readings(out: &Outcome) {
 }
 
 #[test]
-fn dropped_and_corrupt_replies_are_retried_and_never_commanded_from() {
+fn dropped_corrupt_and_late_replies_are_retried_and_never_commanded_from() {
+    // Delays of 15 ms exceed the 10 ms reply timeout: the late packets must be rejected.
     let faults = Faults {
         drop: 0.03,
         corrupt: 0.03,
+        delay: Duration::from_millis(15),
+        delay_fraction: 0.02,
         seed: 5,
         ..Faults::default()
     };
@@ -212,10 +223,10 @@ fn dropped_and_corrupt_replies_are_retried_and_never_commanded_from() {
     let s = &out.summary;
     println!("{s:#?}\nfates {:?}", out.bus.fates);
     assert_eq!(s.stop, StopReason::Duration);
+    let fates = out.bus.fates;
     assert!(
-        out.bus.fates[2] > 0 && out.bus.fates[3] > 0,
-        "faults were injected: {:?}",
-        out.bus.fates
+        fates[1] > 0 && fates[2] > 0 && fates[3] > 0,
+        "faults were injected: {fates:?}"
     );
     assert!(s.bus.timeouts > 0, "dropped replies time out");
     assert!(s.bus.crc_errors > 0, "corrupt replies are seen");
@@ -270,4 +281,17 @@ fn a_silent_servo_triggers_the_safe_stop_with_torque_off() {
             .count(),
         5
     );
+}
+
+#[test]
+fn velocity_from_filtered_differences_also_holds_the_barriers() {
+    let mut robot = example();
+    let hardware = robot.hardware.as_mut().unwrap();
+    hardware.velocity_source = softcbf_codegen::hardware::VelocitySource::Difference;
+    let out = run_with(robot, Faults::default(), 3.0);
+    println!("{:#?}", out.summary);
+    assert_eq!(out.summary.stop, StopReason::Duration);
+    let min = min_barrier(&out.log);
+    println!("minimum barrier {min:e}");
+    assert!(min >= BARRIER_TOLERANCE, "minimum barrier {min}");
 }

@@ -188,6 +188,9 @@ pub fn extra_columns(servos: usize) -> Vec<String> {
 
 const FIXED_EXTRA: usize = 11;
 
+/// Sync-read retries allowed for the safe start's reading (torque is still off).
+const START_READ_RETRIES: u32 = 9;
+
 fn status_code(status: TickStatus) -> f64 {
     match status {
         TickStatus::Unfiltered => 0.0,
@@ -262,7 +265,7 @@ pub fn run<P: ServoPort>(
     // Safe start.
     let start_result = (|| {
         servo_io::prepare(bus, io.ids(), hardware.model_number)?;
-        io.read_states(bus, hardware.retries.max(2))
+        io.read_states(bus, START_READ_RETRIES)
             .map_err(StartError::State)?;
         measure(
             map,
