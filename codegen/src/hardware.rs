@@ -77,17 +77,17 @@ pub struct Hardware {
 pub mod defaults {
     /// 1 Mbit/s: fast enough for 33 Hz with margin, supported by every X-series servo.
     pub const BAUD: u32 = 1_000_000;
-    /// Reply timeout [ms].
+    /// Reply timeout \[ms\].
     pub const REPLY_TIMEOUT_MS: f64 = 10.0;
     /// Sync-read retries per tick.
     pub const RETRIES: u32 = 1;
     /// Failed ticks in a row before the safe stop.
     pub const MAX_CONSECUTIVE_ERRORS: u32 = 5;
-    /// Velocity filter time constant [ms].
+    /// Velocity filter time constant \[ms\].
     pub const VELOCITY_FILTER_MS: f64 = 30.0;
     /// XM430-W350.
     pub const MODEL_NUMBER: u16 = 1020;
-    /// Current unit of the XM430/XM540 [mA].
+    /// Current unit of the XM430/XM540 \[mA\].
     pub const CURRENT_UNIT_MA: f64 = 2.69;
     /// Position unit, 360°/4096.
     pub const POSITION_UNIT_DEG: f64 = 0.087_890_625;

@@ -19,13 +19,13 @@ use softcbf_codegen::robot::Robot;
 /// Options of `softcbf emulate`.
 #[derive(Args, Debug)]
 pub struct EmulateArgs {
-    /// Robot file with a [hardware] table (e.g. robots/hardware-example.toml).
+    /// Robot file with a `[hardware]` table (e.g. robots/hardware-example.toml).
     #[arg(long)]
     pub robot: PathBuf,
     /// Baud rate used to pace replies [bit/s] (default: the robot file's).
     #[arg(long)]
     pub baud: Option<u32>,
-    /// Return Delay Time of the servos [µs] (X-series factory default 500; 0 is usual).
+    /// Return Delay Time of the servos (µs) (X-series factory default 500; 0 is usual).
     #[arg(long, default_value_t = 0)]
     pub return_delay_us: u64,
     /// Fraction of status packets not sent (0..1).
@@ -34,7 +34,7 @@ pub struct EmulateArgs {
     /// Fraction of status packets sent with a wrong CRC (0..1).
     #[arg(long, default_value_t = 0.0)]
     pub corrupt: f64,
-    /// Extra delay of delayed status packets [ms].
+    /// Extra delay of delayed status packets (ms).
     #[arg(long, default_value_t = 0.0)]
     pub delay_ms: f64,
     /// Fraction of status packets delayed by --delay-ms (0..1).
@@ -54,20 +54,20 @@ pub struct EmulateArgs {
 /// Options of `softcbf run`.
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// Robot file with a [hardware] table.
+    /// Robot file with a `[hardware]` table.
     #[arg(long)]
     pub robot: PathBuf,
     /// Serial port of the servo bus (a USB adapter such as /dev/ttyUSB0, or the path
     /// `softcbf emulate` printed).
     #[arg(long)]
     pub port: String,
-    /// Loop rate [Hz].
+    /// Loop rate (Hz).
     #[arg(long, default_value_t = 33.0)]
     pub rate: f64,
     /// Stop after this many seconds (default: run until Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Set point `Δx,Δy,δL,…` [m] (default: the robot file's hardware.set_point).
+    /// Set point `Δx,Δy,δL,…` (m) (default: the robot file's hardware.set_point).
     #[arg(long, allow_hyphen_values = true)]
     pub set_point: Option<String>,
     /// Plain PD+ without the safety filter.

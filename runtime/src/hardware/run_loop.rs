@@ -25,7 +25,7 @@ use crate::protocol::{Bus, BusCounters};
 /// What one run does.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunSettings {
-    /// Loop rate [Hz] (the paper: 33).
+    /// Loop rate \[Hz\] (the paper: 33).
     pub rate: f64,
     /// Stop after this long \[s\]; `None`: until interrupted.
     pub duration: Option<f64>,
