@@ -13,9 +13,10 @@
 //! no clock, touches no port and prints nothing, so simulation and hardware share it.
 
 use crate::dynamics::{
-    DynamicsError, DynamicsWorkspace, bias_and_gravity, factor_mass_matrix, mass_matrix,
-    solve_mass_matrix, update_joints,
+    DynamicsError, DynamicsWorkspace, factor_mass_matrix, mass_matrix, nonlinear_effects,
+    update_joints,
 };
+use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve};
 use crate::model::Model;
 use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
 
@@ -30,6 +31,9 @@ pub struct ControllerSettings {
     pub barrier_gains: [f64; 2],
     /// Run the safety filter (`false`: plain PD+, `τ = τ_nom`). Default `true`.
     pub filter: bool,
+    /// Hold period `Δ` [s] of the hold correction (module docs); `0` (the default) gives the
+    /// paper's rows `A = J M⁻¹`.
+    pub hold_correction: f64,
     /// Settings of the safety QP.
     pub qp: QpSettings,
 }
@@ -43,6 +47,7 @@ impl ControllerSettings {
             kd: scaled_identity(model.nq(), 1.0),
             barrier_gains: model.robot.barrier_gains,
             filter: true,
+            hold_correction: 0.0,
             qp: QpSettings::default(),
         }
     }
@@ -62,6 +67,12 @@ impl ControllerSettings {
                     reason: format!("entry {} is {}; gains must be finite", k + 1, matrix[k]),
                 });
             }
+        }
+        if !(self.hold_correction.is_finite() && self.hold_correction >= 0.0) {
+            return Err(ControllerError::Setting {
+                field: "hold_correction",
+                reason: format!("must be finite and ≥ 0 s, got {}", self.hold_correction),
+            });
         }
         for (field, gain) in [("p1", self.barrier_gains[0]), ("p2", self.barrier_gains[1])] {
             if !(gain.is_finite() && gain > 0.0) {
@@ -155,6 +166,9 @@ pub struct Controller {
     rhs: Vec<f64>,
     /// `n = h + G + K q + D q̇`, then `M⁻¹ n`.
     drift: Vec<f64>,
+    /// `M⁻¹` (or `S⁻¹` with the hold correction), and `S`'s factor, row-major `nq × nq`.
+    inverse_mass: Vec<f64>,
+    hold_factor: Vec<f64>,
     scratch: Vec<f64>,
     tau_nom: Vec<f64>,
     tau: Vec<f64>,
@@ -178,7 +192,9 @@ impl Controller {
             rows: vec![0.0; nb * nq],
             rhs: vec![0.0; nb],
             drift: vec![0.0; nq],
-            scratch: vec![0.0; nq],
+            inverse_mass: vec![0.0; nq * nq],
+            hold_factor: vec![0.0; nq * nq],
+            scratch: vec![0.0; nq * nq],
             tau_nom: vec![0.0; nq],
             tau: vec![0.0; nq],
             qp,
@@ -226,7 +242,7 @@ impl Controller {
         self.qp.report()
     }
 
-    /// The dynamics evaluated at the last tick's state (`M`, `h`, `G`).
+    /// The dynamics evaluated at the last tick's state (`M` and `h + G` in `nonlinear`).
     pub fn dynamics(&self) -> &DynamicsWorkspace {
         &self.dynamics
     }
@@ -278,7 +294,7 @@ pub fn tick(
     let ws = &mut controller.dynamics;
     update_joints(model, ws, q, qd);
     mass_matrix(model, ws);
-    bias_and_gravity(model, ws, qd);
+    nonlinear_effects(model, ws, qd);
     if let Err(error) = factor_mass_matrix(ws) {
         return controller.fallback(match error {
             DynamicsError::NotPositiveDefinite => InvalidState::MassMatrix,
@@ -306,13 +322,12 @@ pub fn tick(
                 + settings.kd[i * nq + j] * (reference.qd[j] - qd[j]);
         }
         controller.tau_nom[i] = inertial
-            + ws.bias[i]
-            + ws.gravity[i]
+            + ws.nonlinear[i]
             + model.stiffness[i] * reference.q[i]
             + model.damping[i] * reference.qd[i]
             + feedback;
         controller.drift[i] =
-            ws.bias[i] + ws.gravity[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
+            ws.nonlinear[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
     }
     if !(all_finite(&controller.tau_nom)
         && all_finite(&controller.drift)
@@ -327,14 +342,45 @@ pub fn tick(
         return TickStatus::Unfiltered;
     }
 
-    // Rows A_k = (M⁻¹ J_kᵀ)ᵀ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k.
+    // Rows A_k = J_k M⁻¹ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k
+    // (with the hold correction: S⁻¹ for M⁻¹ and n + Δ K q̇ for n).
+    // A barrier depends on few coordinates (its module's), so zero entries of J are skipped.
     let [p1, p2] = settings.barrier_gains;
-    solve_mass_matrix(ws, &mut controller.drift);
+    let hold = settings.hold_correction;
+    let factor = if hold > 0.0 {
+        // S = M + Δ D + Δ² K, and n + Δ K q̇ (K, D diagonal).
+        controller.hold_factor.copy_from_slice(&ws.mass_matrix);
+        let diagonals = model.stiffness.iter().zip(&model.damping).zip(qd);
+        for (i, ((k, d), v)) in diagonals.enumerate() {
+            controller.hold_factor[i * nq + i] += hold * d + hold * hold * k;
+            controller.drift[i] += hold * k * v;
+        }
+        if !cholesky_in_place(&mut controller.hold_factor, nq) {
+            return controller.fallback(InvalidState::MassMatrix);
+        }
+        &controller.hold_factor
+    } else {
+        &ws.cholesky
+    };
+    cholesky_solve(factor, nq, &mut controller.drift);
+    cholesky_inverse(
+        factor,
+        nq,
+        &mut controller.inverse_mass,
+        &mut controller.scratch,
+    );
     for k in 0..controller.nb {
         let jacobian_row = &controller.jacobian[k * nq..(k + 1) * nq];
-        controller.scratch.copy_from_slice(jacobian_row);
-        solve_mass_matrix(ws, &mut controller.scratch);
-        controller.rows[k * nq..(k + 1) * nq].copy_from_slice(&controller.scratch);
+        let row = &mut controller.rows[k * nq..(k + 1) * nq];
+        row.fill(0.0);
+        for (c, &j) in jacobian_row.iter().enumerate() {
+            if j != 0.0 {
+                let inverse_row = &controller.inverse_mass[c * nq..(c + 1) * nq];
+                for (a, m) in row.iter_mut().zip(inverse_row) {
+                    *a += j * m;
+                }
+            }
+        }
         controller.rhs[k] = dot(jacobian_row, &controller.drift)
             - controller.jdot_qd[k]
             - (p1 + p2) * dot(jacobian_row, qd)

@@ -4,14 +4,13 @@
 //! Why recursive rather than fully symbolic: each segment's transform, motion subspace `S_i`
 //! and `c_J,i = Ṡ_i q̇_i` are generated symbolically (their cost is linear in the number of
 //! modules and they hold all the small-θ care); composing bodies numerically keeps `M`
-//! O(N²) and `h`, `G` O(N), whereas closed forms of `M` over `T_1⋯T_i` grow much faster
-//! with the chain's length (see the issue note for the measured table).
+//! O(N²) and `h`, `G` O(N), whereas closed forms of `M` over the products `T_1⋯T_i` grow
+//! with every module the chain gets. Bodies are composed with compact transforms and
+//! inertias ([`crate::spatial`]).
 
+use crate::linalg::{cholesky_in_place, cholesky_solve};
 use crate::model::Model;
-use crate::spatial::{
-    Mat3, Mat6, Vec6, apply, apply_transpose, congruence, cross_force, cross_motion, mat_vec,
-    motion_transform,
-};
+use crate::spatial::{Inertia, Mat3, Transform, Vec6, cross_force, cross_motion};
 
 /// Why forward dynamics gave no acceleration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
@@ -36,19 +35,20 @@ pub struct DynamicsWorkspace {
     pub motion_subspace: Vec<[[f64; 3]; 6]>,
     /// `c_J,i = Ṡ_i q̇_i`.
     pub bias_acceleration: Vec<Vec6>,
-    /// Motion transform parent → body `i`.
-    pub transforms: Vec<Mat6>,
-    /// Body twists `v_i` (body coordinates).
+    /// Transform parent → body `i`.
+    pub transforms: Vec<Transform>,
+    /// Body twists `v_i` (body coordinates) of the last velocity pass.
     pub velocities: Vec<Vec6>,
-    accelerations: Vec<Vec6>,
     forces: Vec<Vec6>,
-    composite: Vec<Mat6>,
+    composite: Vec<Inertia>,
     /// `M(q)`, row-major `nq × nq`.
     pub mass_matrix: Vec<f64>,
-    /// `h = C(q, q̇) q̇`.
+    /// `h = C(q, q̇) q̇` (from [`bias_and_gravity`]).
     pub bias: Vec<f64>,
-    /// `G(q)`.
+    /// `G(q)` (from [`bias_and_gravity`]).
     pub gravity: Vec<f64>,
+    /// `h + G` (from [`bias_and_gravity`] or [`nonlinear_effects`]).
+    pub nonlinear: Vec<f64>,
     /// Cholesky factor of `M` (lower, row-major).
     pub cholesky: Vec<f64>,
 }
@@ -64,21 +64,22 @@ impl DynamicsWorkspace {
             translation: vec![[0.0; 3]; n],
             motion_subspace: vec![[[0.0; 3]; 6]; n],
             bias_acceleration: vec![[0.0; 6]; n],
-            transforms: vec![[[0.0; 6]; 6]; n],
+            transforms: vec![Transform::default(); n],
             velocities: vec![[0.0; 6]; n],
-            accelerations: vec![[0.0; 6]; n],
             forces: vec![[0.0; 6]; n],
-            composite: vec![[[0.0; 6]; 6]; n],
+            composite: vec![Inertia::default(); n],
             mass_matrix: vec![0.0; nq * nq],
             bias: vec![0.0; nq],
             gravity: vec![0.0; nq],
+            nonlinear: vec![0.0; nq],
             cholesky: vec![0.0; nq * nq],
         }
     }
 }
 
 /// Evaluates the generated joint terms at `(q, q̇)` and the parent→child transforms.
-/// Must precede [`mass_matrix`], [`bias_and_gravity`] and [`kinetic_energy`].
+/// Must precede [`mass_matrix`], [`bias_and_gravity`], [`nonlinear_effects`] and
+/// [`gravity_energy`].
 pub fn update_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &[f64]) {
     model.generated.joint_terms(
         &model.params,
@@ -89,25 +90,32 @@ pub fn update_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &
         &mut ws.motion_subspace,
         &mut ws.bias_acceleration,
     );
-    for i in 0..ws.n {
-        ws.transforms[i] = motion_transform(&ws.rotation[i], &ws.translation[i]);
+    for ((x, rotation), translation) in ws
+        .transforms
+        .iter_mut()
+        .zip(&ws.rotation)
+        .zip(&ws.translation)
+    {
+        *x = Transform {
+            rotation: *rotation,
+            translation: *translation,
+        };
     }
 }
 
+#[inline]
 fn subspace_times(s: &[[f64; 3]; 6], x: &[f64]) -> Vec6 {
-    let mut out = [0.0; 6];
-    for (o, row) in out.iter_mut().zip(s) {
-        *o = row[0] * x[0] + row[1] * x[1] + row[2] * x[2];
-    }
-    out
+    let (a, b, c) = (x[0], x[1], x[2]);
+    s.map(|row| row[0] * a + row[1] * b + row[2] * c)
 }
 
+#[inline]
 fn subspace_transpose_times(s: &[[f64; 3]; 6], f: &Vec6) -> [f64; 3] {
     let mut out = [0.0; 3];
     for (row, fr) in s.iter().zip(f) {
-        for (o, sv) in out.iter_mut().zip(row) {
-            *o += sv * fr;
-        }
+        out[0] += row[0] * fr;
+        out[1] += row[1] * fr;
+        out[2] += row[2] * fr;
     }
     out
 }
@@ -117,23 +125,16 @@ pub fn mass_matrix(model: &Model, ws: &mut DynamicsWorkspace) {
     let n = ws.n;
     let nq = 3 * n;
     for i in (0..n).rev() {
-        ws.composite[i] = model.inertias[i];
+        let mut composite = model.inertias[i];
         if i + 1 < n {
-            let child = congruence(&ws.transforms[i + 1], &ws.composite[i + 1]);
-            for (row, child_row) in ws.composite[i].iter_mut().zip(&child) {
-                for (a, b) in row.iter_mut().zip(child_row) {
-                    *a += b;
-                }
-            }
+            composite.add(&ws.composite[i + 1].to_parent(&ws.transforms[i + 1]));
         }
+        ws.composite[i] = composite;
     }
     for i in 0..n {
         // F = I^c_i S_i, one column per coordinate of module i.
-        let mut f = [[0.0; 6]; 3];
-        for (k, column) in f.iter_mut().enumerate() {
-            let s_k: Vec6 = std::array::from_fn(|r| ws.motion_subspace[i][r][k]);
-            *column = mat_vec(&ws.composite[i], &s_k);
-        }
+        let s = &ws.motion_subspace[i];
+        let mut f: [Vec6; 3] = std::array::from_fn(|k| ws.composite[i].apply(&s.map(|row| row[k])));
         let mut j = i;
         loop {
             for (k, column) in f.iter().enumerate() {
@@ -147,65 +148,65 @@ pub fn mass_matrix(model: &Model, ws: &mut DynamicsWorkspace) {
                 break;
             }
             for column in f.iter_mut() {
-                *column = apply_transpose(&ws.transforms[j], column);
+                *column = ws.transforms[j].force_to_parent(column);
             }
             j -= 1;
         }
     }
 }
 
-/// One recursive Newton–Euler pass with `q̈ = 0`: generalized forces of the body
-/// accelerations caused by `base_acceleration` and, if `with_velocity`, by `q̇`.
+/// One recursive Newton–Euler pass with `q̈ = 0` and the base accelerating at
+/// `base_acceleration`: the generalized forces of the resulting body accelerations, and,
+/// if `with_velocity`, of the velocity terms. Writes them into `out`.
 fn newton_euler(
     model: &Model,
     ws: &mut DynamicsWorkspace,
     qd: &[f64],
     base_acceleration: Vec6,
     with_velocity: bool,
-    out: Selector,
+    out: Output,
 ) {
     let n = ws.n;
     let mut parent_velocity = [0.0; 6];
     let mut parent_acceleration = base_acceleration;
     for i in 0..n {
         let x = &ws.transforms[i];
-        let mut a = apply(x, &parent_acceleration);
-        let mut v = [0.0; 6];
-        if with_velocity {
+        let mut a = x.motion_to_child(&parent_acceleration);
+        let inertia = &model.inertias[i];
+        let f = if with_velocity {
             let joint_velocity = subspace_times(&ws.motion_subspace[i], &qd[3 * i..3 * i + 3]);
-            v = apply(x, &parent_velocity);
+            let mut v = x.motion_to_child(&parent_velocity);
             for (vi, vj) in v.iter_mut().zip(&joint_velocity) {
                 *vi += vj;
             }
             let coriolis = cross_motion(&v, &joint_velocity);
-            for r in 0..6 {
-                a[r] += ws.bias_acceleration[i][r] + coriolis[r];
+            for ((ar, br), cr) in a.iter_mut().zip(&ws.bias_acceleration[i]).zip(&coriolis) {
+                *ar += br + cr;
             }
-        }
-        let inertia = &model.inertias[i];
-        let mut f = mat_vec(inertia, &a);
-        if with_velocity {
-            let momentum = mat_vec(inertia, &v);
-            let gyroscopic = cross_force(&v, &momentum);
-            for r in 0..6 {
-                f[r] += gyroscopic[r];
+            let mut f = inertia.apply(&a);
+            let gyroscopic = cross_force(&v, &inertia.apply(&v));
+            for (fr, gr) in f.iter_mut().zip(&gyroscopic) {
+                *fr += gr;
             }
             ws.velocities[i] = v;
-        }
-        ws.accelerations[i] = a;
+            parent_velocity = v;
+            f
+        } else {
+            inertia.apply(&a)
+        };
         ws.forces[i] = f;
-        parent_velocity = v;
         parent_acceleration = a;
     }
     for i in (0..n).rev() {
         let tau = subspace_transpose_times(&ws.motion_subspace[i], &ws.forces[i]);
         let target = match out {
-            Selector::Bias => &mut ws.bias,
-            Selector::Gravity => &mut ws.gravity,
+            Output::Bias => &mut ws.bias,
+            Output::Gravity => &mut ws.gravity,
+            Output::Nonlinear => &mut ws.nonlinear,
         };
         target[3 * i..3 * i + 3].copy_from_slice(&tau);
         if i > 0 {
-            let to_parent = apply_transpose(&ws.transforms[i], &ws.forces[i]);
+            let to_parent = ws.transforms[i].force_to_parent(&ws.forces[i]);
             for (parent, child) in ws.forces[i - 1].iter_mut().zip(&to_parent) {
                 *parent += child;
             }
@@ -214,27 +215,56 @@ fn newton_euler(
 }
 
 #[derive(Clone, Copy)]
-enum Selector {
+enum Output {
     Bias,
     Gravity,
+    Nonlinear,
 }
 
-/// `h = C(q, q̇) q̇` into `ws.bias` and `G(q)` into `ws.gravity` (two RNEA passes).
-pub fn bias_and_gravity(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
-    newton_euler(model, ws, qd, [0.0; 6], true, Selector::Bias);
+/// Gravity as a fictitious upward acceleration of the base (Featherstone's trick).
+fn base_acceleration(model: &Model) -> Vec6 {
     let g = model.robot.gravity;
-    // Gravity as a fictitious upward acceleration of the base (Featherstone's trick).
-    let base = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
-    newton_euler(model, ws, qd, base, false, Selector::Gravity);
+    [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]]
 }
 
-/// `½ q̇ᵀ M q̇`, from the body twists of the last [`bias_and_gravity`] call.
+/// `h = C(q, q̇) q̇` into `ws.bias`, `G(q)` into `ws.gravity` and their sum into
+/// `ws.nonlinear` (two RNEA passes).
+pub fn bias_and_gravity(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
+    newton_euler(model, ws, qd, [0.0; 6], true, Output::Bias);
+    newton_euler(
+        model,
+        ws,
+        qd,
+        base_acceleration(model),
+        false,
+        Output::Gravity,
+    );
+    for ((sum, h), g) in ws.nonlinear.iter_mut().zip(&ws.bias).zip(&ws.gravity) {
+        *sum = h + g;
+    }
+}
+
+/// `h + G` into `ws.nonlinear` in one RNEA pass (what forward dynamics and the controller
+/// need; `ws.bias` and `ws.gravity` are left as they were).
+pub fn nonlinear_effects(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
+    newton_euler(
+        model,
+        ws,
+        qd,
+        base_acceleration(model),
+        true,
+        Output::Nonlinear,
+    );
+}
+
+/// `½ q̇ᵀ M q̇`, from the body twists of the last velocity pass ([`bias_and_gravity`] or
+/// [`nonlinear_effects`]).
 pub fn kinetic_energy(model: &Model, ws: &DynamicsWorkspace) -> f64 {
     ws.velocities
         .iter()
         .zip(&model.inertias)
         .map(|(v, inertia)| {
-            let momentum = mat_vec(inertia, v);
+            let momentum = inertia.apply(v);
             0.5 * v.iter().zip(&momentum).map(|(a, b)| a * b).sum::<f64>()
         })
         .sum()
@@ -277,54 +307,22 @@ pub fn elastic_energy(model: &Model, q: &[f64]) -> f64 {
 /// Cholesky factorization of `ws.mass_matrix` into `ws.cholesky`.
 pub fn factor_mass_matrix(ws: &mut DynamicsWorkspace) -> Result<(), DynamicsError> {
     let nq = 3 * ws.n;
-    let (m, l) = (&ws.mass_matrix, &mut ws.cholesky);
-    for j in 0..nq {
-        let mut diagonal = m[j * nq + j];
-        for k in 0..j {
-            diagonal -= l[j * nq + k] * l[j * nq + k];
-        }
-        // NaN is not finite, so it is rejected too.
-        if !diagonal.is_finite() || diagonal <= 0.0 {
-            return Err(DynamicsError::NotPositiveDefinite);
-        }
-        let pivot = diagonal.sqrt();
-        l[j * nq + j] = pivot;
-        for i in (j + 1)..nq {
-            let mut sum = m[i * nq + j];
-            for k in 0..j {
-                sum -= l[i * nq + k] * l[j * nq + k];
-            }
-            l[i * nq + j] = sum / pivot;
-        }
-        for i in 0..j {
-            l[i * nq + j] = 0.0;
-        }
+    ws.cholesky.copy_from_slice(&ws.mass_matrix);
+    if cholesky_in_place(&mut ws.cholesky, nq) {
+        Ok(())
+    } else {
+        Err(DynamicsError::NotPositiveDefinite)
     }
-    Ok(())
 }
 
 /// Solves `M x = b` in place with the factor from [`factor_mass_matrix`].
 pub fn solve_mass_matrix(ws: &DynamicsWorkspace, b: &mut [f64]) {
-    let nq = 3 * ws.n;
-    let l = &ws.cholesky;
-    for i in 0..nq {
-        let mut sum = b[i];
-        for k in 0..i {
-            sum -= l[i * nq + k] * b[k];
-        }
-        b[i] = sum / l[i * nq + i];
-    }
-    for i in (0..nq).rev() {
-        let mut sum = b[i];
-        for k in (i + 1)..nq {
-            sum -= l[k * nq + i] * b[k];
-        }
-        b[i] = sum / l[i * nq + i];
-    }
+    cholesky_solve(&ws.cholesky, 3 * ws.n, b);
 }
 
 /// Forward dynamics: `q̈ = M⁻¹ (τ − h − G − K q − D q̇)`, allocation-free. On error `qdd`
-/// is filled with NaN so it cannot be used by mistake.
+/// is filled with NaN so it cannot be used by mistake. Leaves `M`, its factor and
+/// `h + G` (in `ws.nonlinear`) at `(q, q̇)` in the workspace.
 pub fn forward_dynamics(
     model: &Model,
     ws: &mut DynamicsWorkspace,
@@ -340,17 +338,13 @@ pub fn forward_dynamics(
     }
     update_joints(model, ws, q, qd);
     mass_matrix(model, ws);
-    bias_and_gravity(model, ws, qd);
+    nonlinear_effects(model, ws, qd);
     if let Err(error) = factor_mass_matrix(ws) {
         qdd.fill(f64::NAN);
         return Err(error);
     }
     for k in 0..q.len() {
-        qdd[k] = tau[k]
-            - ws.bias[k]
-            - ws.gravity[k]
-            - model.stiffness[k] * q[k]
-            - model.damping[k] * qd[k];
+        qdd[k] = tau[k] - ws.nonlinear[k] - model.stiffness[k] * q[k] - model.damping[k] * qd[k];
     }
     solve_mass_matrix(ws, qdd);
     if finite(qdd) {

@@ -5,7 +5,7 @@ use softcbf_codegen::layout::{pack_params, param_layout};
 use softcbf_codegen::robot::{Robot, Routing};
 use softcbf_generated::GeneratedModel;
 
-use crate::spatial::{Mat6, rigid_body_inertia};
+use crate::spatial::Inertia;
 
 /// Why a robot cannot be simulated or controlled with this build.
 #[derive(Debug, thiserror::Error)]
@@ -36,7 +36,7 @@ pub struct Model {
     /// The parameter vector the generated functions read.
     pub params: Vec<f64>,
     /// Spatial inertia of each module's plate about its tip-frame origin, tip coordinates.
-    pub inertias: Vec<Mat6>,
+    pub inertias: Vec<Inertia>,
     /// Diagonal of `K` (MODEL.md §4): `κθ/d², κθ/d², κL` per module.
     pub stiffness: Vec<f64>,
     /// Diagonal of `D`: `βθ/d², βθ/d², βL` per module.
@@ -87,7 +87,7 @@ impl Model {
         for m in &robot.modules {
             let [ixx, iyy, izz] = m.inertia;
             let inertia = [[ixx, 0.0, 0.0], [0.0, iyy, 0.0], [0.0, 0.0, izz]];
-            inertias.push(rigid_body_inertia(
+            inertias.push(Inertia::rigid_body(
                 m.mass,
                 &[0.0, 0.0, m.com_offset],
                 &inertia,

@@ -23,6 +23,8 @@ pub struct PlantSystem<'m> {
     qdd: Vec<f64>,
     w: MechanicalW,
     last_error: Option<DynamicsError>,
+    /// The state at which `dynamics` holds `M` (the last successful right-hand side).
+    evaluated_at: Vec<f64>,
 }
 
 impl<'m> PlantSystem<'m> {
@@ -41,6 +43,7 @@ impl<'m> PlantSystem<'m> {
             qdd: vec![0.0; nq],
             w,
             last_error: None,
+            evaluated_at: vec![f64::NAN; 2 * nq],
         }
     }
 
@@ -75,10 +78,12 @@ impl OdeSystem for PlantSystem<'_> {
                 dx[..nq].copy_from_slice(qd);
                 dx[nq..].copy_from_slice(&self.qdd);
                 self.last_error = None;
+                self.evaluated_at.copy_from_slice(x);
                 true
             }
             Err(error) => {
                 self.last_error = Some(error);
+                self.evaluated_at.fill(f64::NAN);
                 false
             }
         }
@@ -87,10 +92,14 @@ impl OdeSystem for PlantSystem<'_> {
 
 impl WSolve for PlantSystem<'_> {
     fn prepare_w(&mut self, _t: f64, x: &[f64], gamma_h: f64) -> bool {
-        let nq = self.model.nq();
-        let (q, qd) = x.split_at(nq);
-        update_joints(self.model, &mut self.dynamics, q, qd);
-        mass_matrix(self.model, &mut self.dynamics);
+        // The integrator evaluates f at a step's start just before preparing W there, so
+        // M is usually in the workspace already.
+        if self.evaluated_at != x {
+            let nq = self.model.nq();
+            let (q, qd) = x.split_at(nq);
+            update_joints(self.model, &mut self.dynamics, q, qd);
+            mass_matrix(self.model, &mut self.dynamics);
+        }
         self.w
             .mass_matrix_mut()
             .copy_from_slice(&self.dynamics.mass_matrix);

@@ -3,7 +3,7 @@
 
 use softcbf::dynamics::{
     DynamicsError, DynamicsWorkspace, bias_and_gravity, elastic_energy, forward_dynamics,
-    gravity_energy, kinetic_energy, mass_matrix, update_joints,
+    gravity_energy, kinetic_energy, mass_matrix, nonlinear_effects, update_joints,
 };
 use softcbf::model::Model;
 use softcbf_codegen::analytic::SWITCH_POINTS;
@@ -572,10 +572,10 @@ fn check_forward_dynamics<const N: usize>(robot: Robot, seed: u64, trials: usize
         let result = forward_dynamics(&model, &mut ws, &q, &qd, &tau, &mut qdd);
         assert!(result.is_ok(), "trial {trial}, q = {q:?}: {result:?}");
         let exact = dynamics(&robot, &q, &qd);
-        // Against the workspace's own M, h, G (the solve), then against the jets (all).
+        // Against the workspace's own M and h + G (the solve), then against the jets (all).
         let runtime_m = ws.mass_matrix.clone();
         let sources = [
-            ("runtime", runtime_m, ws.bias.clone(), ws.gravity.clone()),
+            ("runtime", runtime_m, ws.nonlinear.clone(), vec![0.0; N]),
             (
                 "reference",
                 exact.mass_matrix.iter().flatten().copied().collect(),
@@ -622,4 +622,31 @@ fn forward_dynamics_satisfies_equation_of_motion() {
         reference::paper_module(0.0),
     ]);
     check_forward_dynamics::<6>(paper, 74, 300);
+}
+
+/// The single RNEA pass with the base accelerating against gravity gives `h + G` as the
+/// two separate passes do (the sum is linear in the base acceleration).
+#[test]
+fn nonlinear_effects_are_bias_plus_gravity() {
+    let robot = paper_robot(modules(2, 0.01));
+    let model = model_of(robot.clone());
+    let mut ws = DynamicsWorkspace::new(&model);
+    let mut rng = SplitMix(77);
+    for _ in 0..200 {
+        let (q, qd) = sample_state::<6>(&mut rng, &robot);
+        update_joints(&model, &mut ws, &q, &qd);
+        bias_and_gravity(&model, &mut ws, &qd);
+        let sum: Vec<f64> = ws
+            .bias
+            .iter()
+            .zip(&ws.gravity)
+            .map(|(h, g)| h + g)
+            .collect();
+        ws.nonlinear.fill(f64::NAN);
+        nonlinear_effects(&model, &mut ws, &qd);
+        let scale = 1.0 + max_abs(&sum);
+        for (a, b) in ws.nonlinear.iter().zip(&sum) {
+            assert!((a - b).abs() <= 1e-13 * scale, "{a} vs {b}");
+        }
+    }
 }

@@ -58,7 +58,6 @@
 //! with `M(q)` refrozen every tick, for a gain the W-method already delivers.
 
 mod dopri;
-mod linalg;
 mod rosenbrock;
 mod wsolve;
 

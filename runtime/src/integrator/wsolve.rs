@@ -1,8 +1,8 @@
 //! Providers of `W = I − γ h J̃` for the Rosenbrock-W integrator: the mechanical `n×n` SPD
 //! reduction ([`MechanicalW`]) and a general dense finite-difference/LU version ([`DenseW`]).
 
-use super::linalg::{cholesky_in_place, cholesky_solve, lu_in_place, lu_solve};
 use super::{OdeSystem, WSolve};
+use crate::linalg::{cholesky_in_place, cholesky_solve, lu_in_place, lu_solve};
 
 /// `W` for a mechanical system `x = (q, q̇)`, `q ∈ Rⁿ`, with the approximate Jacobian
 /// `J̃ = [[0, I], [−M⁻¹K̃, −M⁻¹D̃]]` built from a mass matrix `M` and stiffness and damping

@@ -1,39 +1,38 @@
-//! Small dense factorizations used by the W-matrix solvers, on preallocated row-major slices.
-//! Cholesky for symmetric positive definite matrices, LU with partial pivoting otherwise.
+//! Small dense factorizations on preallocated row-major slices, for the mass matrix and the
+//! integrators' W matrices: Cholesky for symmetric positive definite, LU with pivoting else.
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
 
 /// Cholesky factorization `A = L Lᵀ` in place (row-major `n×n`, only the lower triangle is
-/// read; `L` is written to the lower triangle). Returns `false` if `A` is not (numerically)
-/// positive definite or holds a non-finite entry.
-pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+/// read; `L` is written to the lower triangle, the strict upper triangle is left as it was).
+/// Returns `false` if `A` is not (numerically) positive definite or holds a non-finite
+/// entry. Rows are taken as slices, so the inner products run without index checks.
+pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    let a = &mut a[..n * n];
     for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
-        if !(d > 0.0 && d.is_finite()) {
+        let (row_j, below) = a[j * n..].split_at_mut(n);
+        let d = row_j[j] - dot(&row_j[..j], &row_j[..j]);
+        // NaN is not finite, so it is rejected too.
+        if !d.is_finite() || d <= 0.0 {
             return false;
         }
         let ljj = d.sqrt();
-        a[j * n + j] = ljj;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / ljj;
+        row_j[j] = ljj;
+        for row_i in below.chunks_exact_mut(n) {
+            row_i[j] = (row_i[j] - dot(&row_i[..j], &row_j[..j])) / ljj;
         }
     }
     true
 }
 
 /// Solves `L Lᵀ y = b` in place with the factor from [`cholesky_in_place`].
-pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i * n + k] * b[k];
-        }
-        b[i] = s / l[i * n + i];
+pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    let (l, b) = (&l[..n * n], &mut b[..n]);
+    for (i, row) in l.chunks_exact(n).enumerate() {
+        b[i] = (b[i] - dot(&row[..i], &b[..i])) / row[i];
     }
     for i in (0..n).rev() {
         let mut s = b[i];
@@ -44,10 +43,39 @@ pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     }
 }
 
+/// `A⁻¹` (row-major `n×n`, symmetric) from the factor of [`cholesky_in_place`]: the inverse
+/// of `L` by forward substitution, then `A⁻¹ = L⁻ᵀ L⁻¹`. `work` is scratch of `n×n`.
+pub fn cholesky_inverse(l: &[f64], n: usize, inverse: &mut [f64], work: &mut [f64]) {
+    let (l, inverse, work) = (&l[..n * n], &mut inverse[..n * n], &mut work[..n * n]);
+    // work = L⁻¹ (lower triangular), column by column.
+    work.fill(0.0);
+    for c in 0..n {
+        work[c * n + c] = 1.0 / l[c * n + c];
+        for r in c + 1..n {
+            let mut s = 0.0;
+            for k in c..r {
+                s -= l[r * n + k] * work[k * n + c];
+            }
+            work[r * n + c] = s / l[r * n + r];
+        }
+    }
+    // inverse[a][b] = Σ_{k ≥ max(a, b)} L⁻¹[k][a] L⁻¹[k][b].
+    for a in 0..n {
+        for b in a..n {
+            let mut s = 0.0;
+            for k in b..n {
+                s += work[k * n + a] * work[k * n + b];
+            }
+            inverse[a * n + b] = s;
+            inverse[b * n + a] = s;
+        }
+    }
+}
+
 /// LU factorization with partial pivoting in place (row-major `n×n`): `P A = L U`, unit
 /// lower `L` below the diagonal, `U` on and above it, row `i` of `P A` is row `piv[i]` of
 /// `A`. Returns `false` on an exactly zero or non-finite pivot.
-pub(crate) fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
+pub fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
     for (i, p) in piv.iter_mut().enumerate().take(n) {
         *p = i;
     }
@@ -85,7 +113,7 @@ pub(crate) fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
 }
 
 /// Solves `A y = b` with the factor from [`lu_in_place`]; `tmp` is scratch of length `n`.
-pub(crate) fn lu_solve(lu: &[f64], n: usize, piv: &[usize], b: &mut [f64], tmp: &mut [f64]) {
+pub fn lu_solve(lu: &[f64], n: usize, piv: &[usize], b: &mut [f64], tmp: &mut [f64]) {
     for i in 0..n {
         tmp[i] = b[piv[i]];
     }
@@ -148,6 +176,16 @@ mod tests {
         for i in 0..n {
             assert!((b1[i] - y[i]).abs() < 1e-12);
             assert!((rb[i] - y[i]).abs() < 1e-12);
+        }
+        let mut inverse = vec![0.0; 16];
+        let mut work = vec![0.0; 16];
+        cholesky_inverse(&l, n, &mut inverse, &mut work);
+        for i in 0..n {
+            for j in 0..n {
+                let product: f64 = (0..n).map(|k| a[i * n + k] * inverse[k * n + j]).sum();
+                let identity = if i == j { 1.0 } else { 0.0 };
+                assert!((product - identity).abs() < 1e-12, "({i},{j}) {product}");
+            }
         }
         let mut not_spd = [1.0, 2.0, 2.0, 1.0];
         assert!(!cholesky_in_place(&mut not_spd, 2));

@@ -1,0 +1,158 @@
+//! What `softcbf simulate` leaves behind and shows: trajectory CSVs, `summary.json`, the
+//! figures, a progress bar on a terminal and the one-line summary.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+
+use serde_json::json;
+
+use crate::plot::draw_figures;
+use crate::sim::{Run, RunSummary};
+
+/// Why outputs could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The output directory or a file in it could not be written.
+    #[error("{path}: {source}", path = path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A trajectory could not be written.
+    #[error(transparent)]
+    Record(#[from] crate::record::RecordError),
+    /// The figures could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {
+    move |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Writes `trajectory.csv` (the main run), `trajectory_pd.csv` (the comparison, if any),
+/// `summary.json` and the figures `figure.png` / `figure.svg` into `out_dir` (created if
+/// needed). Returns the paths written.
+pub fn write_outputs(
+    out_dir: &Path,
+    main: &Run,
+    comparison: Option<&Run>,
+    barriers_per_module: &[usize],
+) -> Result<Vec<PathBuf>, OutputError> {
+    std::fs::create_dir_all(out_dir).map_err(io_error(out_dir))?;
+    let mut written = Vec::new();
+    let trajectory = out_dir.join("trajectory.csv");
+    main.record.write_csv(&trajectory)?;
+    written.push(trajectory);
+    if let Some(pd) = comparison {
+        let path = out_dir.join("trajectory_pd.csv");
+        pd.record.write_csv(&path)?;
+        written.push(path);
+    }
+
+    let mut summary = serde_json::to_value(&main.summary).unwrap_or_default();
+    if let (Some(pd), Some(object)) = (comparison, summary.as_object_mut()) {
+        object.insert(
+            "comparison".to_string(),
+            serde_json::to_value(&pd.summary).unwrap_or_default(),
+        );
+    }
+    let summary_path = out_dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&json!(summary)).unwrap_or_default() + "\n";
+    std::fs::write(&summary_path, text).map_err(io_error(&summary_path))?;
+    written.push(summary_path);
+
+    let title = |summary: &RunSummary| match summary.controller {
+        "filter" => "safety filter (HOCBF-QP)",
+        _ => "PD+ only",
+    };
+    let mut panels = vec![(title(&main.summary), &main.record)];
+    if let Some(pd) = comparison {
+        panels.push((title(&pd.summary), &pd.record));
+    }
+    written.extend(draw_figures(
+        out_dir,
+        "figure",
+        &panels,
+        &main.summary.set_point,
+        barriers_per_module,
+    )?);
+    Ok(written)
+}
+
+/// The one line printed at the end of a run.
+pub fn one_line(summary: &RunSummary) -> String {
+    let counts = &summary.counts;
+    let mut line = format!(
+        "{} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier {:.3e} m \
+         (module {}, corner {}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
+        summary.scenario,
+        summary.controller,
+        summary.duration,
+        summary.wall_time,
+        summary.real_time_factor,
+        summary.min_barrier.value,
+        summary.min_barrier.module,
+        summary.min_barrier.corner,
+        summary.min_barrier.t,
+        summary.set_point_error,
+        summary.max_abs_tau,
+    );
+    if counts.qp_solves > 0 {
+        line += &format!(
+            "; {} QP solves ({} with active barriers, {} relaxed, {} failed)",
+            counts.qp_solves, counts.active, counts.relaxed, counts.failed
+        );
+    }
+    if counts.invalid_state > 0 {
+        line += &format!("; {} ticks with an invalid state", counts.invalid_state);
+    }
+    if let Some(why) = &summary.stopped {
+        line += &format!("; STOPPED EARLY: {why}");
+    }
+    line
+}
+
+/// A progress bar on standard error, drawn only when it is a terminal.
+pub struct Progress {
+    label: String,
+    enabled: bool,
+    last: usize,
+}
+
+impl Progress {
+    /// A bar labelled `label`; silent unless standard error is a terminal.
+    pub fn new(label: &str) -> Progress {
+        Progress {
+            label: label.to_string(),
+            enabled: std::io::stderr().is_terminal(),
+            last: usize::MAX,
+        }
+    }
+
+    /// Shows `fraction` ∈ [0, 1] done.
+    pub fn update(&mut self, fraction: f64) {
+        if !self.enabled {
+            return;
+        }
+        let percent = (fraction.clamp(0.0, 1.0) * 100.0).round() as usize;
+        if percent == self.last {
+            return;
+        }
+        self.last = percent;
+        let width = 40;
+        let filled = percent * width / 100;
+        let bar: String = (0..width)
+            .map(|k| if k < filled { '#' } else { '.' })
+            .collect();
+        let mut stderr = std::io::stderr().lock();
+        let _ = write!(stderr, "\r{:<12} [{bar}] {percent:>3}%", self.label);
+        if percent == 100 {
+            let _ = writeln!(stderr);
+        }
+        let _ = stderr.flush();
+    }
+}

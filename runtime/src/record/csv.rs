@@ -1,0 +1,239 @@
+//! CSV form of a trajectory record: one formatting path shared by the in-memory writer and
+//! the streaming [`CsvWriter`] of the hardware loop, and the reader that parses it back.
+//!
+//! Numbers are written in the shortest form that parses back to the same `f64` (Rust's
+//! `Display`, or `LowerExp` for magnitudes below 1e-5 or from 1e16 on, to keep fields
+//! short); `NaN`, `inf` and `-inf` are written as such and read back (a NaN's payload and
+//! sign are not kept). Lines end in `\n`; the reader also accepts `\r\n`.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use super::{Columns, GROUPS, Record, RecordError, Row};
+
+/// Buffer of the streaming writer: about 80 rows of the paper robot between writes.
+const STREAM_BUFFER_BYTES: usize = 64 * 1024;
+
+/// Writes `x` so that `str::parse::<f64>` gives back the same value (bit-exact except
+/// for NaN payloads). Allocates nothing.
+fn write_number<W: Write>(out: &mut W, x: f64) -> io::Result<()> {
+    let magnitude = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-5..1e16).contains(&magnitude) {
+        write!(out, "{x}")
+    } else {
+        write!(out, "{x:e}")
+    }
+}
+
+/// Writes one row (comma-separated, `\n`-terminated). The sizes must already be checked.
+fn write_row<W: Write>(out: &mut W, row: &Row) -> io::Result<()> {
+    for (k, x) in row.values().enumerate() {
+        if k > 0 {
+            out.write_all(b",")?;
+        }
+        write_number(out, x)?;
+    }
+    out.write_all(b"\n")
+}
+
+fn write_header<W: Write>(out: &mut W, columns: &Columns) -> io::Result<()> {
+    out.write_all(columns.header().as_bytes())?;
+    out.write_all(b"\n")
+}
+
+fn io_error(file: &Path) -> impl FnOnce(io::Error) -> RecordError + '_ {
+    move |source| RecordError::Io {
+        file: file.to_path_buf(),
+        source,
+    }
+}
+
+impl Record {
+    /// Writes the record as CSV to `path` (header, then one line per row).
+    pub fn write_csv(&self, path: &Path) -> Result<(), RecordError> {
+        let file = File::create(path).map_err(io_error(path))?;
+        let mut out = BufWriter::new(file);
+        self.write_csv_to(&mut out).map_err(io_error(path))?;
+        out.flush().map_err(io_error(path))
+    }
+
+    /// Writes the record as CSV to `out`.
+    pub fn write_csv_to<W: Write>(&self, out: &mut W) -> io::Result<()> {
+        write_header(out, self.columns())?;
+        for row in self.rows() {
+            write_row(out, &row)?;
+        }
+        Ok(())
+    }
+
+    /// Reads a CSV file written by [`Record::write_csv`] or [`CsvWriter`].
+    pub fn read_csv(path: &Path) -> Result<Record, RecordError> {
+        let text = std::fs::read_to_string(path).map_err(io_error(path))?;
+        Record::parse_csv(&text, path)
+    }
+
+    /// Parses CSV text; `file` names the source in errors. The layout (n, m, extra
+    /// columns) is taken from the header. Empty lines are skipped.
+    pub fn parse_csv(text: &str, file: &Path) -> Result<Record, RecordError> {
+        let mut lines = text.lines().enumerate();
+        let Some((_, header)) = lines.next().filter(|(_, line)| !line.trim().is_empty()) else {
+            return Err(RecordError::MissingHeader {
+                file: file.to_path_buf(),
+            });
+        };
+        let columns = parse_header(header, file)?;
+        let width = columns.width();
+        let mut record = Record::for_columns(columns, text.lines().count().saturating_sub(1));
+        for (index, line) in lines {
+            if line.trim().is_empty() {
+                continue;
+            }
+            let line_number = index + 1;
+            let fields: Vec<&str> = line.split(',').collect();
+            if fields.len() != width {
+                return Err(RecordError::FieldCount {
+                    file: file.to_path_buf(),
+                    line: line_number,
+                    expected: width,
+                    found: fields.len(),
+                });
+            }
+            for (k, field) in fields.iter().enumerate() {
+                let text = field.trim();
+                let value = text.parse::<f64>().map_err(|_| RecordError::Number {
+                    file: file.to_path_buf(),
+                    line: line_number,
+                    column: record.columns().name(k).unwrap_or_default(),
+                    text: text.to_string(),
+                })?;
+                record.data.push(value);
+            }
+        }
+        Ok(record)
+    }
+}
+
+/// Reads the layout from a header line: `t`, then `q0…`, `qd0…`, `tau0…`, `taunom0…`
+/// (all of one length `n`), `b0…`, then extra names.
+fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
+    let names: Vec<&str> = line.split(',').map(str::trim).collect();
+    let mismatch = |column: usize, expected: String| RecordError::Header {
+        file: file.to_path_buf(),
+        column: column + 1,
+        found: names.get(column).unwrap_or(&"<end of line>").to_string(),
+        expected,
+    };
+    if names[0] != "t" {
+        return Err(mismatch(0, "`t`".to_string()));
+    }
+    // Length of the run `group0, group1, …` starting at `start`.
+    let run = |group: &str, start: usize| {
+        names[start.min(names.len())..]
+            .iter()
+            .enumerate()
+            .take_while(|(k, name)| **name == format!("{group}{k}"))
+            .count()
+    };
+    let n = run(GROUPS[0], 1);
+    let mut next = 1 + n;
+    for group in &GROUPS[1..4] {
+        let found = run(group, next);
+        if found != n {
+            return Err(mismatch(
+                next + found,
+                format!("`{group}{found}` (n = {n} from the q columns)"),
+            ));
+        }
+        next += n;
+    }
+    let m = run(GROUPS[4], next);
+    next += m;
+    let extra: Vec<&str> = names[next..].to_vec();
+    Columns::new(n, m, &extra).map_err(|error| {
+        let bad = match &error {
+            RecordError::ExtraName { name, .. } => extra.iter().position(|e| e == name),
+            _ => None,
+        };
+        mismatch(
+            next + bad.unwrap_or(0),
+            format!("a valid extra column name ({error})"),
+        )
+    })
+}
+
+/// Streams rows to a CSV file as they come, for a run too long or too fragile to hold in
+/// memory. Same header and number format as [`Record::write_csv`].
+///
+/// Rows go through a 64 KiB buffer: [`CsvWriter::push_row`] allocates nothing and calls
+/// the operating system only when the buffer fills. The buffer is written out by
+/// [`CsvWriter::flush`], [`CsvWriter::finish`] and on drop (also while unwinding from a
+/// panic); `std::process::exit` skips drops, so flush before it.
+pub struct CsvWriter<W: Write> {
+    out: BufWriter<W>,
+    columns: Columns,
+    file: PathBuf,
+    rows: usize,
+}
+
+impl CsvWriter<File> {
+    /// Creates (or truncates) `path` and writes the header.
+    pub fn create(path: &Path, columns: Columns) -> Result<CsvWriter<File>, RecordError> {
+        let file = File::create(path).map_err(io_error(path))?;
+        CsvWriter::new(file, columns, path)
+    }
+}
+
+impl<W: Write> CsvWriter<W> {
+    /// Writes the header to `inner`; `file` names it in errors.
+    pub fn new(inner: W, columns: Columns, file: &Path) -> Result<CsvWriter<W>, RecordError> {
+        let mut out = BufWriter::with_capacity(STREAM_BUFFER_BYTES, inner);
+        write_header(&mut out, &columns).map_err(io_error(file))?;
+        Ok(CsvWriter {
+            out,
+            columns,
+            file: file.to_path_buf(),
+            rows: 0,
+        })
+    }
+
+    /// Appends one row; a row of the wrong sizes is refused and nothing is written.
+    pub fn push_row(&mut self, row: &Row) -> Result<(), RecordError> {
+        self.columns.check(row)?;
+        write_row(&mut self.out, row).map_err(io_error(&self.file))?;
+        self.rows += 1;
+        Ok(())
+    }
+
+    /// Writes everything buffered to the file (and flushes the file).
+    pub fn flush(&mut self) -> Result<(), RecordError> {
+        self.out.flush().map_err(io_error(&self.file))
+    }
+
+    /// Flushes and closes, reporting any error (drop would ignore it).
+    pub fn finish(mut self) -> Result<(), RecordError> {
+        self.flush()
+    }
+
+    /// Rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The column layout.
+    pub fn columns(&self) -> &Columns {
+        &self.columns
+    }
+
+    /// The underlying writer (holding what has been flushed).
+    pub fn get_ref(&self) -> &W {
+        self.out.get_ref()
+    }
+}
+
+impl<W: Write> Drop for CsvWriter<W> {
+    fn drop(&mut self) {
+        // Errors cannot be reported from drop; `finish` reports them.
+        let _ = self.out.flush();
+    }
+}

@@ -1,0 +1,317 @@
+//! The closed-loop simulator: the controller ticks at a fixed period on the sampled state,
+//! its command is held (zero-order hold) while the plant is integrated to the next tick.
+//!
+//! One run fills a [`Record`] (one row per tick, the last at `t = duration`, whose command is
+//! computed and logged but not applied) and a [`RunSummary`]. A failure of the plant
+//! integration ends the run early; the record and summary keep what happened up to it and
+//! [`RunSummary::stopped`] says why. Nothing allocates inside the loop.
+
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use crate::control::{self, Controller, ControllerError, TickStatus};
+use crate::integrator::IntegratorError;
+use crate::model::Model;
+use crate::plant::Plant;
+use crate::record::{Record, RecordError, Row};
+use crate::reference::ReferenceSignal;
+use crate::scenario::Scenario;
+
+/// Why a run could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SimulationError {
+    /// The controller could not be built from the scenario's settings.
+    #[error(transparent)]
+    Controller(#[from] ControllerError),
+    /// The integrator settings were refused.
+    #[error("integrator: {0}")]
+    Integrator(#[from] IntegratorError),
+    /// The record could not be laid out.
+    #[error("record: {0}")]
+    Record(#[from] RecordError),
+    /// The scenario's vectors do not fit the model.
+    #[error("scenario has vectors of length {got}, the robot has {expected} coordinates")]
+    Size { expected: usize, got: usize },
+}
+
+/// The lowest barrier value seen at a tick.
+#[derive(Clone, Debug, Serialize)]
+pub struct BarrierMinimum {
+    /// `min_k b_k(t)` over the ticks [m].
+    pub value: f64,
+    /// Index of that barrier (module-major, corner-minor, 0-based).
+    pub barrier: usize,
+    /// Its module (1-based, base first).
+    pub module: usize,
+    /// Its corner within the module's plate (1-based).
+    pub corner: usize,
+    /// When [s].
+    pub t: f64,
+}
+
+/// How often one barrier's row was relaxed.
+#[derive(Clone, Debug, Serialize)]
+pub struct RelaxedBarrier {
+    /// Barrier index (module-major, corner-minor, 0-based).
+    pub barrier: usize,
+    /// Module (1-based) and corner (1-based).
+    pub module: usize,
+    pub corner: usize,
+    /// Ticks in which its row was relaxed.
+    pub ticks: usize,
+}
+
+/// Counts of the controller's outcomes over a run.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TickCounts {
+    /// Ticks run.
+    pub ticks: usize,
+    /// QP solves (ticks with the filter on and a valid state).
+    pub qp_solves: usize,
+    /// Solves with at least one active barrier row.
+    pub active: usize,
+    /// Solves that had to relax some barrier rows (infeasible rows).
+    pub relaxed: usize,
+    /// Solves without a verified solution (safe command applied).
+    pub failed: usize,
+    /// Ticks whose state or model was not finite (safe command applied).
+    pub invalid_state: usize,
+}
+
+/// What `summary.json` holds for one run.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSummary {
+    /// `"filter"` (HOCBF-QP) or `"pd"` (plain PD+).
+    pub controller: &'static str,
+    /// Scenario name.
+    pub scenario: String,
+    /// Robot name.
+    pub robot: String,
+    /// Simulated time reached [s].
+    pub duration: f64,
+    /// Control period [s].
+    pub control_period: f64,
+    /// Lowest barrier value at a tick, and which barrier.
+    pub min_barrier: BarrierMinimum,
+    /// Final `q` [m].
+    pub final_q: Vec<f64>,
+    /// Final reference `q̄` [m].
+    pub set_point: Vec<f64>,
+    /// `‖q − q̄‖₂` at the end [m].
+    pub set_point_error: f64,
+    /// Largest `|τ_i|` applied [N].
+    pub max_abs_tau: f64,
+    /// Controller outcomes.
+    pub counts: TickCounts,
+    /// Barriers whose rows were relaxed, with how often.
+    pub relaxed_barriers: Vec<RelaxedBarrier>,
+    /// Accepted integrator steps, rejected attempts, right-hand sides and `W` factorizations.
+    pub integrator_steps: usize,
+    pub integrator_rejected: usize,
+    pub integrator_rhs_evals: usize,
+    pub integrator_w_factorizations: usize,
+    /// Wall time of the whole run [s], of the control ticks and of the integration.
+    pub wall_time: f64,
+    pub control_time: f64,
+    pub integration_time: f64,
+    /// Simulated seconds per wall-clock second.
+    pub real_time_factor: f64,
+    /// Why the run ended early (`None`: it reached the duration).
+    pub stopped: Option<String>,
+}
+
+/// A finished run: its trajectory and summary.
+pub struct Run {
+    /// One row per tick.
+    pub record: Record,
+    /// Figures of the run.
+    pub summary: RunSummary,
+}
+
+/// (module, corner), both 1-based, of barrier `k` given the corners per module.
+pub fn barrier_owner(corners: &[usize], k: usize) -> (usize, usize) {
+    let mut first = 0;
+    for (i, &c) in corners.iter().enumerate() {
+        if k < first + c {
+            return (i + 1, k - first + 1);
+        }
+        first += c;
+    }
+    (0, 0)
+}
+
+/// Simulates `scenario` on `model` with the safety filter on (`filter`) or off, calling
+/// `progress` with the fraction done (about a hundred times per run).
+pub fn simulate(
+    model: &Model,
+    scenario: &Scenario,
+    filter: bool,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Run, SimulationError> {
+    let (nq, nb) = (model.nq(), model.nb());
+    for len in [scenario.initial_q.len(), scenario.initial_qd.len()] {
+        if len != nq {
+            return Err(SimulationError::Size {
+                expected: nq,
+                got: len,
+            });
+        }
+    }
+    let mut settings = scenario.controller.clone();
+    settings.filter = filter;
+    let mut controller = Controller::new(model, settings)?;
+    let mut plant = Plant::new(model, scenario.tolerances)?;
+    plant.reset(&scenario.initial_q, &scenario.initial_qd, 0.0);
+    let mut reference = ReferenceSignal::new(scenario.reference.clone());
+    if reference.spec().dimension() != Some(nq) {
+        return Err(SimulationError::Size {
+            expected: nq,
+            got: reference.spec().dimension().unwrap_or(0),
+        });
+    }
+    let ticks = (scenario.duration / scenario.control_period).round() as usize;
+    let mut record = Record::with_capacity(nq, nb, &[], ticks + 1)?;
+    let corners = model.generated.corners();
+
+    let mut counts = TickCounts::default();
+    let mut relaxed_ticks = vec![0usize; nb];
+    let mut minimum = BarrierMinimum {
+        value: f64::INFINITY,
+        barrier: 0,
+        module: 0,
+        corner: 0,
+        t: 0.0,
+    };
+    let mut max_abs_tau = 0.0_f64;
+    let (mut control_time, mut integration_time) = (Duration::ZERO, Duration::ZERO);
+    let mut stopped = None;
+    let report_every = (ticks / 100).max(1);
+    let start = Instant::now();
+    let mut t = 0.0;
+    for k in 0..=ticks {
+        t = k as f64 * scenario.control_period;
+        let tick_start = Instant::now();
+        let status = control::tick(
+            model,
+            &mut controller,
+            plant.q(),
+            plant.qd(),
+            reference.sample(t),
+        );
+        control_time += tick_start.elapsed();
+
+        counts.ticks += 1;
+        match status {
+            TickStatus::Unfiltered => {}
+            TickStatus::Filtered | TickStatus::Relaxed | TickStatus::QpFailed => {
+                counts.qp_solves += 1;
+                let report = controller.qp_report();
+                if report.active > 0 {
+                    counts.active += 1;
+                }
+                if status == TickStatus::Relaxed {
+                    counts.relaxed += 1;
+                    for &row in &report.relaxed_rows {
+                        relaxed_ticks[row] += 1;
+                    }
+                }
+                if status == TickStatus::QpFailed {
+                    counts.failed += 1;
+                }
+            }
+            TickStatus::InvalidState(_) => counts.invalid_state += 1,
+        }
+        for (j, &b) in controller.barriers().iter().enumerate() {
+            if b < minimum.value {
+                let (module, corner) = barrier_owner(corners, j);
+                minimum = BarrierMinimum {
+                    value: b,
+                    barrier: j,
+                    module,
+                    corner,
+                    t,
+                };
+            }
+        }
+        let applied = if k < ticks { controller.tau() } else { &[][..] };
+        max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
+        record.push_row(&Row {
+            t,
+            q: plant.q(),
+            qd: plant.qd(),
+            tau: controller.tau(),
+            tau_nom: controller.tau_nom(),
+            b: controller.barriers(),
+            extra: &[],
+        })?;
+        if k == ticks {
+            break;
+        }
+        plant.tau_mut().copy_from_slice(controller.tau());
+        let step_start = Instant::now();
+        let advanced = plant.advance(scenario.control_period);
+        integration_time += step_start.elapsed();
+        if let Err(error) = advanced {
+            let cause = plant
+                .last_dynamics_error()
+                .map_or(String::new(), |e| format!(" ({e})"));
+            stopped = Some(format!("plant integration failed: {error}{cause}"));
+            t = plant.time();
+            break;
+        }
+        if k % report_every == 0 {
+            progress((k + 1) as f64 / ticks.max(1) as f64);
+        }
+    }
+    let wall_time = start.elapsed().as_secs_f64();
+    progress(1.0);
+
+    let set_point = reference.sample(t).q.to_vec();
+    let final_q = plant.q().to_vec();
+    let set_point_error = final_q
+        .iter()
+        .zip(&set_point)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        .sqrt();
+    let relaxed_barriers = relaxed_ticks
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| **n > 0)
+        .map(|(barrier, &ticks)| {
+            let (module, corner) = barrier_owner(corners, barrier);
+            RelaxedBarrier {
+                barrier,
+                module,
+                corner,
+                ticks,
+            }
+        })
+        .collect();
+    let stats = plant.stats();
+    let summary = RunSummary {
+        controller: if filter { "filter" } else { "pd" },
+        scenario: scenario.name.clone(),
+        robot: model.robot.name.clone(),
+        duration: t,
+        control_period: scenario.control_period,
+        min_barrier: minimum,
+        final_q,
+        set_point,
+        set_point_error,
+        max_abs_tau,
+        counts,
+        relaxed_barriers,
+        integrator_steps: stats.steps,
+        integrator_rejected: stats.rejected,
+        integrator_rhs_evals: stats.rhs_evals,
+        integrator_w_factorizations: stats.w_factorizations,
+        wall_time,
+        control_time: control_time.as_secs_f64(),
+        integration_time: integration_time.as_secs_f64(),
+        real_time_factor: t / wall_time.max(1e-12),
+        stopped,
+    };
+    Ok(Run { record, summary })
+}

@@ -1,0 +1,381 @@
+//! The safe controller: HOCBF rows against the barrier's acceleration along the true
+//! dynamics, the PD+ law against its defining property, the filter's pass-through, and the
+//! fallbacks for non-finite states and infeasible rows.
+
+use softcbf::cli::load_robot;
+use softcbf::control::{Controller, ControllerSettings, InvalidState, Reference, TickStatus, tick};
+use softcbf::dynamics::{DynamicsWorkspace, forward_dynamics};
+use softcbf::model::Model;
+use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
+use softcbf_tests::reference::SplitMix;
+
+fn paper_model() -> Model {
+    Model::new(load_robot(None).expect("embedded robot")).expect("paper model")
+}
+
+/// A random state with bend angles up to about 2 rad and moderate velocities.
+fn random_state(rng: &mut SplitMix, nq: usize) -> (Vec<f64>, Vec<f64>) {
+    let q: Vec<f64> = (0..nq)
+        .map(|i| match i % 3 {
+            2 => rng.uniform(-0.04, 0.04),
+            _ => rng.uniform(-0.06, 0.06),
+        })
+        .collect();
+    let qd: Vec<f64> = (0..nq).map(|_| rng.uniform(-0.3, 0.3)).collect();
+    (q, qd)
+}
+
+fn barriers_at(model: &Model, q: &[f64]) -> Vec<f64> {
+    let mut b = vec![0.0; model.nb()];
+    model.generated.barriers(&model.params, q, &mut b);
+    b
+}
+
+fn zeros(n: usize) -> Vec<f64> {
+    vec![0.0; n]
+}
+
+/// `A τ − b` of every HOCBF row must equal `b̈ + (p1 + p2) ḃ + p1 p2 b` of the barrier along
+/// the motion that `τ` causes, here measured by differences of the plain barrier values
+/// along `q(t) = q + t q̇ + ½ t² q̈` (no Jacobian or `J̇q̇` of the generated code involved).
+#[test]
+fn hocbf_rows_predict_the_barrier_acceleration() {
+    let model = paper_model();
+    let (nq, nb) = (model.nq(), model.nb());
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    let [p1, p2] = controller.settings().barrier_gains;
+    let mut ws = DynamicsWorkspace::new(&model);
+    let mut rng = SplitMix(11);
+    let (zero, h) = (zeros(nq), 2e-5);
+    let mut worst = 0.0_f64;
+    for _ in 0..300 {
+        let (q, qd) = random_state(&mut rng, nq);
+        let reference = Reference {
+            q: &zero,
+            qd: &zero,
+            qdd: &zero,
+        };
+        tick(&model, &mut controller, &q, &qd, reference);
+        let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-3.0, 3.0)).collect();
+        let mut qdd = zeros(nq);
+        forward_dynamics(&model, &mut ws, &q, &qd, &tau, &mut qdd).unwrap();
+        let along = |t: f64| -> Vec<f64> {
+            let point: Vec<f64> = (0..nq)
+                .map(|i| q[i] + t * qd[i] + 0.5 * t * t * qdd[i])
+                .collect();
+            barriers_at(&model, &point)
+        };
+        // Central differences at h and h/2, combined by Richardson extrapolation: the
+        // accelerations reach thousands of m/s², so the O(h²) term matters.
+        let centre = along(0.0);
+        let (minus, plus) = (along(-h), along(h));
+        let (minus_half, plus_half) = (along(-h / 2.0), along(h / 2.0));
+        let (rows, rhs) = controller.constraints();
+        for k in 0..nb {
+            let rate_h = (plus[k] - minus[k]) / (2.0 * h);
+            let rate_half = (plus_half[k] - minus_half[k]) / h;
+            let rate = (4.0 * rate_half - rate_h) / 3.0;
+            let second = |p: f64, m: f64, step: f64| (p - 2.0 * centre[k] + m) / (step * step);
+            let acceleration = (4.0 * second(plus_half[k], minus_half[k], h / 2.0)
+                - second(plus[k], minus[k], h))
+                / 3.0;
+            let expected = acceleration + (p1 + p2) * rate + p1 * p2 * centre[k];
+            let predicted: f64 = rows[k * nq..(k + 1) * nq]
+                .iter()
+                .zip(&tau)
+                .map(|(a, t)| a * t)
+                .sum::<f64>()
+                - rhs[k];
+            let scale = 1.0 + acceleration.abs() + p1 * p2 * centre[k].abs();
+            let error = (predicted - expected).abs() / scale;
+            worst = worst.max(error);
+            assert!(
+                error < 1e-5,
+                "barrier {k}: predicted {predicted}, from differences {expected} (q {q:?})"
+            );
+        }
+    }
+    eprintln!("worst relative error of the HOCBF rows: {worst:.2e}");
+}
+
+/// With the hold correction the rows predict the tick-averaged acceleration of a linearly
+/// implicit Euler step, `(M + ΔD + Δ²K) q̇⁺ = M q̇ + Δ (τ − h − G − K q)`, solved here by
+/// Gaussian elimination from `M`, `h + G` and the diagonals of MODEL.md §4.
+#[test]
+fn hold_corrected_rows_predict_the_implicit_euler_step() {
+    let model = paper_model();
+    let (nq, nb) = (model.nq(), model.nb());
+    let mut settings = ControllerSettings::paper(&model);
+    let hold = 1e-3;
+    settings.hold_correction = hold;
+    let mut controller = Controller::new(&model, settings).unwrap();
+    let [p1, p2] = controller.settings().barrier_gains;
+    let robot = &model.robot;
+    let mut stiffness = Vec::new();
+    let mut damping = Vec::new();
+    for m in &robot.modules {
+        let d2 = m.tendon_radius * m.tendon_radius;
+        stiffness.extend([
+            m.bending_stiffness / d2,
+            m.bending_stiffness / d2,
+            m.axial_stiffness,
+        ]);
+        damping.extend([
+            m.bending_damping / d2,
+            m.bending_damping / d2,
+            m.axial_damping,
+        ]);
+    }
+    let mut rng = SplitMix(14);
+    let zero = zeros(nq);
+    for _ in 0..100 {
+        let (q, qd) = random_state(&mut rng, nq);
+        let reference = Reference {
+            q: &zero,
+            qd: &zero,
+            qdd: &zero,
+        };
+        tick(&model, &mut controller, &q, &qd, reference);
+        let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-3.0, 3.0)).collect();
+        let ws = controller.dynamics();
+        // Augmented system [S | M q̇ + Δ(τ − h − G − K q)].
+        let mut system: Vec<Vec<f64>> = (0..nq)
+            .map(|i| {
+                let mut row: Vec<f64> = ws.mass_matrix[i * nq..(i + 1) * nq].to_vec();
+                row[i] += hold * damping[i] + hold * hold * stiffness[i];
+                let momentum: f64 = (0..nq).map(|j| ws.mass_matrix[i * nq + j] * qd[j]).sum();
+                row.push(momentum + hold * (tau[i] - ws.nonlinear[i] - stiffness[i] * q[i]));
+                row
+            })
+            .collect();
+        for c in 0..nq {
+            let pivot = (c..nq)
+                .max_by(|&a, &b| system[a][c].abs().total_cmp(&system[b][c].abs()))
+                .unwrap();
+            system.swap(c, pivot);
+            let pivot_row = system[c].clone();
+            for (r, row) in system.iter_mut().enumerate() {
+                if r != c {
+                    let f = row[c] / pivot_row[c];
+                    for (x, p) in row[c..].iter_mut().zip(&pivot_row[c..]) {
+                        *x -= f * p;
+                    }
+                }
+            }
+        }
+        let qd_next: Vec<f64> = (0..nq).map(|i| system[i][nq] / system[i][i]).collect();
+        let jacobian = controller.barrier_jacobian();
+        let mut jdot_qd = zeros(nb);
+        let mut b = zeros(nb);
+        let mut j_unused = zeros(nb * nq);
+        model
+            .generated
+            .barrier_terms(&model.params, &q, &qd, &mut b, &mut j_unused, &mut jdot_qd);
+        let (rows, rhs) = controller.constraints();
+        for k in 0..nb {
+            let row = &jacobian[k * nq..(k + 1) * nq];
+            let average: f64 = (0..nq).map(|i| row[i] * (qd_next[i] - qd[i]) / hold).sum();
+            let rate: f64 = (0..nq).map(|i| row[i] * qd[i]).sum();
+            let expected = average + jdot_qd[k] + (p1 + p2) * rate + p1 * p2 * b[k];
+            let predicted: f64 = rows[k * nq..(k + 1) * nq]
+                .iter()
+                .zip(&tau)
+                .map(|(a, t)| a * t)
+                .sum::<f64>()
+                - rhs[k];
+            assert!(
+                (predicted - expected).abs() < 1e-9 * (1.0 + expected.abs()),
+                "barrier {k}: {predicted} vs {expected}"
+            );
+        }
+    }
+}
+
+/// With `q = q̄(t)` and `q̇ = q̄̇(t)` the PD+ torque produces exactly `q̈ = q̄̈`, and at a
+/// resting set point it is the static torque `G + K q̄`, so the robot stays.
+#[test]
+fn pd_plus_torque_reproduces_the_reference_acceleration() {
+    let model = paper_model();
+    let nq = model.nq();
+    let mut settings = ControllerSettings::paper(&model);
+    settings.filter = false;
+    let mut controller = Controller::new(&model, settings).unwrap();
+    let mut ws = DynamicsWorkspace::new(&model);
+    let mut rng = SplitMix(12);
+    for trial in 0..200 {
+        let (q, mut qd) = random_state(&mut rng, nq);
+        let mut qdd_ref: Vec<f64> = (0..nq).map(|_| rng.uniform(-2.0, 2.0)).collect();
+        if trial % 2 == 0 {
+            qd.fill(0.0);
+            qdd_ref.fill(0.0);
+        }
+        let status = tick(
+            &model,
+            &mut controller,
+            &q,
+            &qd,
+            Reference {
+                q: &q,
+                qd: &qd,
+                qdd: &qdd_ref,
+            },
+        );
+        assert_eq!(status, TickStatus::Unfiltered);
+        assert_eq!(controller.tau(), controller.tau_nom());
+        let mut qdd = zeros(nq);
+        forward_dynamics(&model, &mut ws, &q, &qd, controller.tau(), &mut qdd).unwrap();
+        for i in 0..nq {
+            let scale = 1.0 + qdd_ref[i].abs();
+            assert!(
+                (qdd[i] - qdd_ref[i]).abs() < 1e-9 * scale,
+                "coordinate {i}: q̈ {} instead of {}",
+                qdd[i],
+                qdd_ref[i]
+            );
+        }
+    }
+}
+
+/// Whenever no HOCBF row is active the filter returns `τ_nom` bit for bit. With this stiff
+/// plant the rows are active well away from contact: an offset of 1 mm from the set point
+/// (`(K + K_P)·1 mm ≈ 6 N`) or a velocity of 1 mm/s (`D·1 mm/s ≈ 3 N`) accelerates a plate
+/// by tens of m/s², more than `p1 p2 b ≈ 10 m/s²` allows; so the states are drawn within
+/// 0.05 mm and 0.1 mm/s of rest on the set point, where the rows are inactive.
+#[test]
+fn filter_passes_nominal_torque_when_no_row_is_active() {
+    let model = paper_model();
+    let nq = model.nq();
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    let set_point = [0.02, 0.0, 0.0, 0.0, 0.01, 0.0];
+    let zero = zeros(nq);
+    let reference = Reference {
+        q: &set_point,
+        qd: &zero,
+        qdd: &zero,
+    };
+    let status = tick(&model, &mut controller, &set_point, &zero, reference);
+    assert_eq!(status, TickStatus::Filtered);
+    assert_eq!(controller.qp_report().active, 0);
+    assert_eq!(controller.tau(), controller.tau_nom());
+    let mut rng = SplitMix(13);
+    let (mut inactive, mut active) = (0, 0);
+    while inactive < 100 {
+        let q: Vec<f64> = set_point
+            .iter()
+            .map(|s| s + rng.uniform(-5e-5, 5e-5))
+            .collect();
+        let qd: Vec<f64> = (0..nq).map(|_| rng.uniform(-1e-4, 1e-4)).collect();
+        let status = tick(&model, &mut controller, &q, &qd, reference);
+        assert_eq!(status, TickStatus::Filtered);
+        if controller.qp_report().active == 0 {
+            inactive += 1;
+            assert_eq!(controller.tau(), controller.tau_nom());
+        } else {
+            active += 1;
+            assert_ne!(controller.tau(), controller.tau_nom());
+        }
+        assert!(active < 10_000, "no inactive state found");
+    }
+}
+
+/// Close to contact and moving toward it, the filtered command satisfies every row and
+/// differs from the nominal one only along active rows (KKT: `τ − τ_nom = Aᵀ λ`, `λ ≥ 0`).
+#[test]
+fn filtered_torque_satisfies_rows_near_contact() {
+    let model = paper_model();
+    let (nq, nb) = (model.nq(), model.nb());
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    // Module 1 bent about 2 rad toward +x and compressed: its corner at φ = 0 is close to
+    // its bottom plate; velocities push further.
+    let q = [0.075, 0.0, -0.04, 0.0, -0.05, -0.05];
+    let qd = [0.2, 0.0, -0.1, 0.0, -0.2, -0.1];
+    let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
+    let zero = zeros(nq);
+    let reference = Reference {
+        q: &set_point,
+        qd: &zero,
+        qdd: &zero,
+    };
+    let status = tick(&model, &mut controller, &q, &qd, reference);
+    assert_eq!(status, TickStatus::Filtered);
+    assert!(
+        controller.qp_report().active > 0,
+        "some row should be active here"
+    );
+    let (rows, rhs) = controller.constraints();
+    let tau = controller.tau();
+    for k in 0..nb {
+        let lhs: f64 = rows[k * nq..(k + 1) * nq]
+            .iter()
+            .zip(tau)
+            .map(|(a, t)| a * t)
+            .sum();
+        assert!(
+            lhs >= rhs[k] - 1e-7 * (1.0 + rhs[k].abs()),
+            "row {k}: {lhs} < {}",
+            rhs[k]
+        );
+    }
+    assert_ne!(controller.tau(), controller.tau_nom());
+}
+
+#[test]
+fn non_finite_state_gives_the_safe_command() {
+    let model = paper_model();
+    let nq = model.nq();
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    let zero = zeros(nq);
+    let reference = Reference {
+        q: &zero,
+        qd: &zero,
+        qdd: &zero,
+    };
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let mut q = zeros(nq);
+        q[4] = bad;
+        let status = tick(&model, &mut controller, &q, &zero, reference);
+        assert_eq!(status, TickStatus::InvalidState(InvalidState::NonFinite));
+        assert!(status.is_fallback());
+        assert!(controller.tau().iter().all(|&t| t == 0.0));
+        let status = tick(&model, &mut controller, &zero, &q, reference);
+        assert_eq!(status, TickStatus::InvalidState(InvalidState::NonFinite));
+    }
+    // A wrong length is refused the same way, never a panic.
+    let status = tick(&model, &mut controller, &zero[..3], &zero, reference);
+    assert_eq!(status, TickStatus::InvalidState(InvalidState::NonFinite));
+    // A valid state afterwards is served normally.
+    assert_eq!(
+        tick(&model, &mut controller, &zero, &zero, reference),
+        TickStatus::Filtered
+    );
+}
+
+/// The corner barriers of a module always leave room (extending the module raises all its
+/// corners), so an infeasible set is constructed from the controller's own rows: every row
+/// together with its negation shifted by one, `a τ ≥ b` and `−a τ ≥ −b + 1`.
+#[test]
+fn contradictory_rows_are_relaxed_and_reported() {
+    let model = paper_model();
+    let (nq, nb) = (model.nq(), model.nb());
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    let q = [0.05, 0.01, -0.02, -0.01, 0.04, -0.03];
+    let qd = [0.1, 0.0, -0.1, 0.0, 0.1, 0.0];
+    let zero = zeros(nq);
+    let reference = Reference {
+        q: &zero,
+        qd: &zero,
+        qdd: &zero,
+    };
+    tick(&model, &mut controller, &q, &qd, reference);
+    let (rows, rhs) = controller.constraints();
+    let mut a = rows.to_vec();
+    let mut b = rhs.to_vec();
+    a.extend(rows.iter().map(|v| -v));
+    b.extend(rhs.iter().map(|v| -v + 1.0));
+    let mut qp = SafetyQp::new(nq, 2 * nb, QpSettings::default()).unwrap();
+    let mut tau = zeros(nq);
+    let report = qp.solve(controller.tau_nom(), &a, &b, &mut tau);
+    assert_eq!(report.status, QpStatus::Relaxed);
+    assert!(!report.relaxed_rows.is_empty());
+    assert!(tau.iter().all(|t| t.is_finite()));
+}
