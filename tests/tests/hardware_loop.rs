@@ -13,10 +13,12 @@ use std::time::Duration;
 
 use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, Faults};
+use softcbf::hardware::log::CsvLog;
 use softcbf::hardware::mapping::TendonMap;
 use softcbf::hardware::run_loop::{self, LogRow, RunLog, RunSettings, RunSummary, StopReason};
 use softcbf::model::Model;
 use softcbf::protocol::Bus;
+use softcbf::record::Record;
 use softcbf_codegen::robot::Robot;
 
 fn example() -> Robot {
@@ -52,6 +54,23 @@ impl RunLog for MemoryLog {
     }
 }
 
+/// Rows to memory and to the CSV log `softcbf run` writes.
+struct Tee<'a> {
+    memory: &'a mut MemoryLog,
+    csv: Option<&'a mut CsvLog>,
+}
+
+impl RunLog for Tee<'_> {
+    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String> {
+        self.memory.push(row)?;
+        self.csv.as_mut().map_or(Ok(()), |csv| csv.push(row))
+    }
+    fn flush(&mut self) -> Result<(), String> {
+        self.memory.flush()?;
+        self.csv.as_mut().map_or(Ok(()), |csv| csv.flush())
+    }
+}
+
 struct Outcome {
     summary: RunSummary,
     log: MemoryLog,
@@ -60,11 +79,12 @@ struct Outcome {
 
 /// Runs the emulator in a thread and the loop on the other end of a pty.
 fn run_against_emulator(faults: Faults, duration: f64) -> Outcome {
-    run_with(example(), faults, duration)
+    run_with(example(), faults, duration, None)
 }
 
-/// Runs the emulator of `robot` in a thread and the loop on the other end of a pty.
-fn run_with(robot: Robot, faults: Faults, duration: f64) -> Outcome {
+/// Runs the emulator of `robot` in a thread and the loop on the other end of a pty; with
+/// `out`, also writes the log and figures there as `softcbf run` does.
+fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> Outcome {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal");
     master.set_timeout(Duration::from_millis(20)).unwrap();
@@ -110,8 +130,16 @@ fn run_with(robot: Robot, faults: Faults, duration: f64) -> Outcome {
         filter: true,
     };
     let mut log = MemoryLog::default();
+    let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.n_servos()).unwrap());
     let never = AtomicBool::new(false);
-    let summary = run_loop::run(&model, &map, &mut bus, &settings, &mut log, &never).unwrap();
+    let mut tee = Tee {
+        memory: &mut log,
+        csv: csv.as_mut(),
+    };
+    let summary = run_loop::run(&model, &map, &mut bus, &settings, &mut tee, &never).unwrap();
+    if let (Some(csv), Some(dir)) = (csv, out) {
+        softcbf::hardware::log::finish(csv, dir, true, &settings.set_point, &model).unwrap();
+    }
     stop.store(true, Ordering::Relaxed);
     server.join().unwrap().unwrap();
     drop(slave);
@@ -133,7 +161,9 @@ fn min_barrier(log: &MemoryLog) -> f64 {
 
 #[test]
 fn paper_set_point_barriers_held_against_the_emulator() {
-    let out = run_against_emulator(Faults::default(), 4.0);
+    let dir = std::env::temp_dir().join(format!("softcbf-hardware-loop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = run_with(example(), Faults::default(), 4.0, Some(&dir));
     let s = &out.summary;
     println!("{s:#?}");
     assert_eq!(s.stop, StopReason::Duration);
@@ -144,6 +174,22 @@ fn paper_set_point_barriers_held_against_the_emulator() {
     assert!(s.ticks >= 120, "{} ticks in 4 s at 33 Hz", s.ticks);
     assert_eq!((s.held, s.commands), (0, s.ticks));
     assert!(out.log.rows.iter().all(|r| r.3[0] == 1.0));
+    // The CSV on disk has every row with the simulate columns first, and the figures exist.
+    let record = Record::read_csv(&dir.join("trajectory.csv")).unwrap();
+    assert_eq!(record.len() as u64, s.ticks);
+    let header = record.columns().header();
+    assert!(header.starts_with("t,q0,q1,q2,q3,q4,q5,qd0,"), "{header}");
+    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read_us,compute_us,write_us,late_us,overrun,clamp_low,clamp_high,f0,f1,f2,f3,f4,f5"), "{header}");
+    for (k, row) in out.log.rows.iter().enumerate() {
+        assert_eq!(record.row(k).unwrap().q, &row.1[..], "row {k}");
+    }
+    for figure in ["figure.png", "figure.svg"] {
+        let size = std::fs::metadata(dir.join(figure))
+            .map(|m| m.len())
+            .unwrap_or(0);
+        assert!(size > 10_000, "{figure}: {size} bytes");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
     // Torque is off on every servo after the stop, confirmed and in the emulator.
     assert!(s.torque_off.iter().all(|(_, ok)| *ok));
     assert!(out.bus.torque.iter().all(|on| !on));
@@ -288,7 +334,7 @@ fn velocity_from_filtered_differences_also_holds_the_barriers() {
     let mut robot = example();
     let hardware = robot.hardware.as_mut().unwrap();
     hardware.velocity_source = softcbf_codegen::hardware::VelocitySource::Difference;
-    let out = run_with(robot, Faults::default(), 3.0);
+    let out = run_with(robot, Faults::default(), 3.0, None);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);
     let min = min_barrier(&out.log);

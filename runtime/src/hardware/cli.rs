@@ -200,13 +200,15 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         if settings.filter { "on" } else { "off" },
         settings.set_point
     );
-    let summary = run_loop::run(&model, &map, &mut bus, &settings, log.as_mut(), stop)
+    let summary = run_loop::run(&model, &map, &mut bus, &settings, &mut log, stop)
         .map_err(|e| e.to_string())?;
     report(&summary);
-    let figures = super::log::finish(log, &args.out);
-    match figures {
-        Ok(note) => println!("{note}"),
-        Err(e) => eprintln!("warning: {e}"),
+    match super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model) {
+        Ok(files) => {
+            let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
+            println!("wrote {}", names.join(", "));
+        }
+        Err(e) => eprintln!("warning: the log or figures could not be written: {e}"),
     }
     if summary.stop.is_fault() {
         return Err(format!("stopped on a fault: {}", summary.stop));
