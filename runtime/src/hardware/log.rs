@@ -1,14 +1,68 @@
-//! Where `softcbf run` writes: `trajectory.csv`, streamed during the run with the columns of
-//! `softcbf simulate` plus the timing and clamp columns of [`extra_columns`], and at the end
-//! the figures (`figure.png`, `figure.svg`) drawn from it as `simulate` draws its own.
+//! What `softcbf run` logs: one [`LogRow`] per tick into a [`RunLog`], streamed to
+//! `trajectory.csv` (the `simulate` columns plus [`extra_columns`]), then the figures.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use crate::hardware::run_loop::{LogRow, RunLog, extra_columns};
 use crate::model::Model;
 use crate::plot::draw_figures;
 use crate::record::{Columns, CsvWriter, Record, Row};
+
+/// One log row (SI units), borrowed from the loop.
+#[derive(Clone, Copy, Debug)]
+pub struct LogRow<'a> {
+    /// Time of the reading since the first tick \[s\].
+    pub t: f64,
+    /// Measured `q` (NaN when the tick had no reading).
+    pub q: &'a [f64],
+    /// Measured `q̇`.
+    pub qd: &'a [f64],
+    /// Controller command `τ`.
+    pub tau: &'a [f64],
+    /// Nominal `τ_nom`.
+    pub tau_nom: &'a [f64],
+    /// Barriers.
+    pub b: &'a [f64],
+    /// The columns named by [`extra_columns`].
+    pub extra: &'a [f64],
+}
+
+/// Where the loop writes its rows; flushed at every stop.
+pub trait RunLog {
+    /// Appends one row.
+    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String>;
+    /// Writes everything buffered.
+    fn flush(&mut self) -> Result<(), String>;
+}
+
+/// Names of the extra log columns for `servos` servos: `fresh` (1: command from this
+/// tick's reading), `status` (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP
+/// failed, 4 invalid state), `attempts` (sync reads), `comm_errors` (held ticks in a row),
+/// `read_us`, `compute_us`, `write_us` (bus wait, software, write), `late_us` (start after
+/// schedule), `overrun` (0/1), `clamp_low`, `clamp_high`, then `f0…` (tensions sent \[N\]).
+pub fn extra_columns(servos: usize) -> Vec<String> {
+    let mut names: Vec<String> = [
+        "fresh",
+        "status",
+        "attempts",
+        "comm_errors",
+        "read_us",
+        "compute_us",
+        "write_us",
+        "late_us",
+        "overrun",
+        "clamp_low",
+        "clamp_high",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    names.extend((0..servos).map(|k| format!("f{k}")));
+    names
+}
+
+/// Number of extra columns before the tensions.
+pub(crate) const FIXED_EXTRA: usize = 11;
 
 /// The streaming CSV log of a run.
 pub struct CsvLog {

@@ -5,8 +5,9 @@
 //! - [`mapping`]: servo angles → `q`, `q̇`; `τ` → tensions → currents, and back.
 //! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
 //! - [`servo_io`]: safe start, the per-tick sync read/write with retries, safe stop.
-//! - [`run_loop`]: `softcbf run`, the fixed-rate control loop and its log.
-//! - [`signal`]: Ctrl-C as a flag the loops poll.
+//! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`log`] its rows, CSV and
+//!   figures.
+//! - [`signal`]: Ctrl-C as a flag the loops poll; [`cli`]: the two subcommands' options.
 
 pub mod cli;
 pub mod control_table;

@@ -133,60 +133,8 @@ impl RunSummary {
     }
 }
 
-/// One log row (SI units), borrowed from the loop.
-#[derive(Clone, Copy, Debug)]
-pub struct LogRow<'a> {
-    /// Time of the reading since the first tick \[s\].
-    pub t: f64,
-    /// Measured `q` (NaN when the tick had no reading).
-    pub q: &'a [f64],
-    /// Measured `q̇`.
-    pub qd: &'a [f64],
-    /// Controller command `τ`.
-    pub tau: &'a [f64],
-    /// Nominal `τ_nom`.
-    pub tau_nom: &'a [f64],
-    /// Barriers.
-    pub b: &'a [f64],
-    /// The columns named by [`extra_columns`].
-    pub extra: &'a [f64],
-}
-
-/// Where the loop writes its rows; flushed at every stop.
-pub trait RunLog {
-    /// Appends one row.
-    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String>;
-    /// Writes everything buffered.
-    fn flush(&mut self) -> Result<(), String>;
-}
-
-/// Names of the extra log columns for `servos` servos: `fresh` (1: command from this
-/// tick's reading), `status` (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP
-/// failed, 4 invalid state), `attempts` (sync reads), `comm_errors` (held ticks in a row),
-/// `read_us`, `compute_us`, `write_us` (bus wait, software, write), `late_us` (start after
-/// schedule), `overrun` (0/1), `clamp_low`, `clamp_high`, then `f0…` (tensions sent \[N\]).
-pub fn extra_columns(servos: usize) -> Vec<String> {
-    let mut names: Vec<String> = [
-        "fresh",
-        "status",
-        "attempts",
-        "comm_errors",
-        "read_us",
-        "compute_us",
-        "write_us",
-        "late_us",
-        "overrun",
-        "clamp_low",
-        "clamp_high",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    names.extend((0..servos).map(|k| format!("f{k}")));
-    names
-}
-
-const FIXED_EXTRA: usize = 11;
+use crate::hardware::log::FIXED_EXTRA;
+pub use crate::hardware::log::{LogRow, RunLog, extra_columns};
 
 /// Sync-read retries allowed for the safe start's reading (torque is still off).
 const START_READ_RETRIES: u32 = 9;
