@@ -115,6 +115,7 @@ pub(crate) struct RawHardware {
     max_consecutive_errors: Option<Spanned<i64>>,
     velocity: Option<RawVelocity>,
     velocity_filter_ms: Num,
+    operating_mode: Option<Spanned<String>>,
     model_number: Option<Spanned<i64>>,
     current_unit_ma: Num,
     position_unit_deg: Num,
@@ -235,6 +236,19 @@ impl Checker<'_> {
             "rev/min",
             defaults::VELOCITY_UNIT_RPM,
         )?;
+        if let Some(mode) = &raw.operating_mode
+            && mode.get_ref() != "current"
+        {
+            return Err(self.invalid(
+                &mode.span(),
+                "hardware.operating_mode",
+                format!(
+                    "`{}` is not supported; the hardware path commands tensions through the \
+                     servos' current control (`operating_mode = \"current\"`)",
+                    mode.get_ref()
+                ),
+            ));
+        }
         let nq = 3 * modules.len();
         let set_point = match &raw.set_point {
             Some(v) => {
@@ -542,6 +556,13 @@ mod tests {
             "hardware.max_consecutive_errors",
             "1..=1000",
         );
+        assert_invalid(
+            &format!("operating_mode = \"pwm\"\n{MODULE}"),
+            3,
+            "hardware.operating_mode",
+            "`pwm` is not supported",
+        );
+        assert!(parse(&format!("operating_mode = \"current\"\n{MODULE}")).is_ok());
         assert_invalid(
             &format!("set_point = [0, 0]\n{MODULE}"),
             3,
