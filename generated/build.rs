@@ -49,7 +49,15 @@ fn main() {
                 .collect()
         })
         .unwrap_or_default();
-    files.sort();
+    // Sorted, with the paper's robot first: a structure's model is named after the first
+    // file that has it, and the paper's structure must stay `paper_sim` whatever other
+    // files share it (e.g. hardware-example.toml).
+    files.sort_by_key(|p| {
+        (
+            p.file_name().is_none_or(|n| n != "paper-sim.toml"),
+            p.clone(),
+        )
+    });
     if let Ok(extra) = std::env::var("SOFTCBF_ROBOTS") {
         files.extend(
             extra

@@ -22,6 +22,7 @@ pub mod analytic;
 pub mod diff;
 pub mod emit;
 pub mod expr;
+pub mod hardware;
 pub mod layout;
 pub mod model;
 pub mod program;

@@ -13,9 +13,10 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
-use serde::de::{self, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
+use crate::hardware::{Hardware, RawHardware};
 pub use crate::toml_file::FileError as RobotError;
 use crate::toml_file::{Checker, Rule};
 
@@ -74,6 +75,8 @@ pub struct Robot {
     pub routing: Routing,
     /// The modules, base first.
     pub modules: Vec<Module>,
+    /// The `[hardware]` table: servos and calibration, if the file has one.
+    pub hardware: Option<Hardware>,
 }
 
 /// The part of a robot description that decides which code is generated.
@@ -192,9 +195,7 @@ struct RawRobot {
     defaults: Option<RawModule>,
     module: Option<Spanned<Vec<RawModule>>>,
     modules: Option<Spanned<RawCount>>,
-    /// Reserved for the hardware path: accepted, not read here.
-    #[allow(dead_code)]
-    hardware: Option<IgnoredAny>,
+    hardware: Option<Spanned<RawHardware>>,
 }
 
 #[derive(Deserialize)]
@@ -418,6 +419,12 @@ impl Checker<'_> {
             let own = self.fields(table, &prefix)?;
             modules.push(self.module(&own, &defaults, &prefix)?);
         }
+        let hardware = match &raw.hardware {
+            Some(table) => {
+                Some(self.hardware(table.get_ref(), &table.span(), &modules, routing)?)
+            }
+            None => None,
+        };
         Ok(Robot {
             name,
             source: self.path.to_path_buf(),
@@ -425,6 +432,7 @@ impl Checker<'_> {
             barrier_gains,
             routing,
             modules,
+            hardware,
         })
     }
 
@@ -937,16 +945,6 @@ mod tests {
             (robot.barrier_gains, robot.modules[0].rest_length),
             ([3.0, 10.0], 1.0)
         );
-    }
-
-    #[test]
-    fn hardware_table_is_reserved_and_not_validated() {
-        let robot = parse(
-            "[hardware]\nport = \"/dev/ttyUSB0\"\nids = [1, 2, 3]\nnested = { anything = true }\n\
-             [hardware.servo]\nfoo = 1\n[[module]]\n",
-        )
-        .unwrap();
-        assert_eq!(robot.modules.len(), 1);
     }
 
     #[test]

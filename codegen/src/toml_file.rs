@@ -279,12 +279,9 @@ pub fn describe(text: &str, at: usize, message: &str) -> String {
     {
         let place = if hit.table.is_empty() {
             "at top level".to_string()
-        } else if let Some(i) = hit
-            .table
-            .strip_prefix("module[")
-            .and_then(|s| s.strip_suffix(']'))
+        } else if let Some((name, i)) = hit.table.strip_suffix(']').and_then(|s| s.rsplit_once('['))
         {
-            format!("in [[module]] {i}")
+            format!("in [[{name}]] {i}")
         } else {
             format!("in [{}]", hit.table)
         };

@@ -57,6 +57,10 @@ enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// Emulate the robot's servos on a pseudo-terminal (prints the port to connect to).
+    Emulate(softcbf::hardware::cli::EmulateArgs),
+    /// Run the safe controller on the robot's servos (or on `softcbf emulate`).
+    Run(softcbf::hardware::cli::RunArgs),
 }
 
 fn run(cli: Cli) -> Result<(), String> {
@@ -77,6 +81,8 @@ fn run(cli: Cli) -> Result<(), String> {
             say(&serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
             Ok(())
         }
+        Command::Emulate(args) => softcbf::hardware::cli::emulate(args),
+        Command::Run(args) => softcbf::hardware::cli::run(args),
         Command::Simulate {
             scenario,
             robot,

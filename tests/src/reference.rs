@@ -558,6 +558,7 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
         barrier_gains: [10.0, 10.0],
         routing: Routing::Local,
         modules,
+        hardware: None,
     }
 }
 

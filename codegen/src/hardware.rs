@@ -1,0 +1,682 @@
+//! The `[hardware]` table of a robot file: serial settings, servo IDs and the calibration
+//! that maps servo angles and currents to tendon lengths and tensions (MODEL.md §6).
+//!
+//! Parsed by [`crate::robot::Robot::parse`] with the same span-located errors as the rest of
+//! the file; documented in `robots/README.md`. Only what the hardware path needs is here:
+//! the mapping itself lives in the runtime (`softcbf::hardware::mapping`).
+
+use std::ops::Range;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::robot::{Module, Routing};
+use crate::toml_file::{Checker, FileError, Rule};
+
+/// Where the controller takes `q̇` from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VelocitySource {
+    /// The servos' Present Velocity register, mapped like the angles.
+    Servo,
+    /// Differences of successive `q` readings, through a first-order low-pass filter.
+    Difference,
+}
+
+/// One module's servos and their calibration. Tendon `k` is the module's
+/// `tendon_angles_deg[k]`; every array has one entry per tendon (three).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModuleHardware {
+    /// Servo ID driving each tendon (0..=252, unique on the bus).
+    pub servo_ids: [u8; 3],
+    /// `ρ`: radius of the pulley the tendon winds on \[m\].
+    pub pulley_radius: f64,
+    /// `θ_k0`: servo angle at the calibration pose \[rad\] (file: degrees).
+    pub zero_angles: [f64; 3],
+    /// `ℓ_k0`: tendon length at the calibration pose \[m\] (default: the rest length `L0`,
+    /// i.e. calibrated straight and uncompressed).
+    pub zero_lengths: [f64; 3],
+    /// `s_k = ±1`: `+1` when a positive servo rotation (and a positive current) winds the
+    /// tendon, shortening it; `−1` when it unwinds it.
+    pub directions: [f64; 3],
+    /// Tension per unit of motor current [N/mA], identified on the robot.
+    pub actuator_gain: f64,
+    /// `[f_min, f_max]`: tensions commanded are held in this range \[N\].
+    pub tension_limits: [f64; 2],
+}
+
+/// The hardware description of a robot.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hardware {
+    /// Serial baud rate [bit/s]; the servos' Baud Rate register must match.
+    pub baud: u32,
+    /// Longest wait for one status packet \[s\].
+    pub reply_timeout: f64,
+    /// Extra sync-read attempts within one tick after a failed one.
+    pub retries: u32,
+    /// Ticks in a row without a good reading before the safe stop.
+    pub max_consecutive_errors: u32,
+    /// Source of `q̇`.
+    pub velocity_source: VelocitySource,
+    /// Time constant of the low-pass filter on differences \[s\] (with `Difference`).
+    pub velocity_filter: f64,
+    /// Model number every servo must answer to a ping (e.g. 1020: XM430-W350).
+    pub model_number: u16,
+    /// Current unit of the Goal/Present Current registers \[mA\].
+    pub current_unit: f64,
+    /// Position unit of Present Position \[deg\].
+    pub position_unit: f64,
+    /// Velocity unit of Present Velocity [rev/min].
+    pub velocity_unit: f64,
+    /// Default set point `q̄` (length `3·modules`); zeros when not given.
+    pub set_point: Vec<f64>,
+    /// One entry per module, base first.
+    pub modules: Vec<ModuleHardware>,
+}
+
+/// Defaults of the `[hardware]` fields (X-series servos in current control mode).
+pub mod defaults {
+    /// 1 Mbit/s: fast enough for 33 Hz with margin, supported by every X-series servo.
+    pub const BAUD: u32 = 1_000_000;
+    /// Reply timeout \[ms\].
+    pub const REPLY_TIMEOUT_MS: f64 = 10.0;
+    /// Sync-read retries per tick.
+    pub const RETRIES: u32 = 1;
+    /// Failed ticks in a row before the safe stop.
+    pub const MAX_CONSECUTIVE_ERRORS: u32 = 5;
+    /// Velocity filter time constant \[ms\].
+    pub const VELOCITY_FILTER_MS: f64 = 30.0;
+    /// XM430-W350.
+    pub const MODEL_NUMBER: u16 = 1020;
+    /// Current unit of the XM430/XM540 \[mA\].
+    pub const CURRENT_UNIT_MA: f64 = 2.69;
+    /// Position unit, 360°/4096.
+    pub const POSITION_UNIT_DEG: f64 = 0.087_890_625;
+    /// Velocity unit [rev/min].
+    pub const VELOCITY_UNIT_RPM: f64 = 0.229;
+}
+
+/// Baud rates X-series servos support (Baud Rate register values 0..=7).
+pub const SUPPORTED_BAUDS: [u32; 8] = [
+    9_600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000,
+];
+
+// ---------------------------------------------------------------------------------------
+// The table as serde reads it.
+
+type Num = Option<Spanned<f64>>;
+type List = Option<Spanned<Vec<Spanned<f64>>>>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawHardware {
+    baud: Option<Spanned<i64>>,
+    reply_timeout_ms: Num,
+    retries: Option<Spanned<i64>>,
+    max_consecutive_errors: Option<Spanned<i64>>,
+    velocity: Option<RawVelocity>,
+    velocity_filter_ms: Num,
+    operating_mode: Option<Spanned<String>>,
+    model_number: Option<Spanned<i64>>,
+    current_unit_ma: Num,
+    position_unit_deg: Num,
+    velocity_unit_rpm: Num,
+    set_point: List,
+    module: Option<Spanned<Vec<RawModuleHardware>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum RawVelocity {
+    Servo,
+    Difference,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModuleHardware {
+    servo_ids: Spanned<Vec<Spanned<i64>>>,
+    pulley_radius: Spanned<f64>,
+    zero_angle_deg: Spanned<Vec<Spanned<f64>>>,
+    zero_length: List,
+    direction: Spanned<Vec<Spanned<i64>>>,
+    actuator_gain: Spanned<f64>,
+    tension_limits: Spanned<Vec<Spanned<f64>>>,
+}
+
+// ---------------------------------------------------------------------------------------
+// Checking.
+
+impl Checker<'_> {
+    /// An integer in `[min, max]`.
+    fn integer(&self, v: &Spanned<i64>, field: &str, min: i64, max: i64) -> Result<i64, FileError> {
+        let value = *v.get_ref();
+        if value < min || value > max {
+            return Err(self.invalid(
+                &v.span(),
+                field,
+                format!("must be an integer in {min}..={max}, got {value}"),
+            ));
+        }
+        Ok(value)
+    }
+
+    /// Checks the `[hardware]` table against the robot's modules (`table` spans it).
+    pub(crate) fn hardware(
+        &self,
+        raw: &RawHardware,
+        table: &Range<usize>,
+        modules: &[Module],
+        routing: Routing,
+    ) -> Result<Hardware, FileError> {
+        let baud = match &raw.baud {
+            Some(v) => {
+                let value = self.integer(v, "hardware.baud", 1, i64::from(u32::MAX))? as u32;
+                if !SUPPORTED_BAUDS.contains(&value) {
+                    return Err(self.invalid(
+                        &v.span(),
+                        "hardware.baud",
+                        format!("{value} bit/s is not an X-series baud rate; use one of {SUPPORTED_BAUDS:?}"),
+                    ));
+                }
+                value
+            }
+            None => defaults::BAUD,
+        };
+        let positive_ms = |v: &Num, field: &str, default: f64| -> Result<f64, FileError> {
+            Ok(match v {
+                Some(v) => self.number(v, field, Rule::Positive, "ms")?,
+                None => default,
+            } / 1000.0)
+        };
+        let reply_timeout = positive_ms(
+            &raw.reply_timeout_ms,
+            "hardware.reply_timeout_ms",
+            defaults::REPLY_TIMEOUT_MS,
+        )?;
+        let velocity_filter = positive_ms(
+            &raw.velocity_filter_ms,
+            "hardware.velocity_filter_ms",
+            defaults::VELOCITY_FILTER_MS,
+        )?;
+        let count = |v: &Option<Spanned<i64>>, field: &str, min: i64, default: u32| {
+            v.as_ref().map_or(Ok(default), |v| {
+                Ok(self.integer(v, field, min, 1000)? as u32)
+            })
+        };
+        let retries = count(&raw.retries, "hardware.retries", 0, defaults::RETRIES)?;
+        let max_consecutive_errors = count(
+            &raw.max_consecutive_errors,
+            "hardware.max_consecutive_errors",
+            1,
+            defaults::MAX_CONSECUTIVE_ERRORS,
+        )?;
+        let model_number = match &raw.model_number {
+            Some(v) => self.integer(v, "hardware.model_number", 0, 65535)? as u16,
+            None => defaults::MODEL_NUMBER,
+        };
+        let unit = |v: &Num, field: &str, unit: &str, default: f64| {
+            v.as_ref()
+                .map_or(Ok(default), |v| self.number(v, field, Rule::Positive, unit))
+        };
+        let current_unit = unit(
+            &raw.current_unit_ma,
+            "hardware.current_unit_ma",
+            "mA",
+            defaults::CURRENT_UNIT_MA,
+        )?;
+        let position_unit = unit(
+            &raw.position_unit_deg,
+            "hardware.position_unit_deg",
+            "°",
+            defaults::POSITION_UNIT_DEG,
+        )?;
+        let velocity_unit = unit(
+            &raw.velocity_unit_rpm,
+            "hardware.velocity_unit_rpm",
+            "rev/min",
+            defaults::VELOCITY_UNIT_RPM,
+        )?;
+        if let Some(mode) = &raw.operating_mode
+            && mode.get_ref() != "current"
+        {
+            return Err(self.invalid(
+                &mode.span(),
+                "hardware.operating_mode",
+                format!(
+                    "`{}` is not supported; the hardware path commands tensions through the \
+                     servos' current control (`operating_mode = \"current\"`)",
+                    mode.get_ref()
+                ),
+            ));
+        }
+        let nq = 3 * modules.len();
+        let set_point = match &raw.set_point {
+            Some(v) => {
+                let values = self.list(v.get_ref(), "hardware.set_point", Rule::Finite, "m")?;
+                if values.len() != nq {
+                    return Err(self.invalid(
+                        &v.span(),
+                        "hardware.set_point",
+                        format!(
+                            "has {} entries, the robot has {nq} coordinates (Δx, Δy, δL per module)",
+                            values.len()
+                        ),
+                    ));
+                }
+                values
+            }
+            None => vec![0.0; nq],
+        };
+        if routing != Routing::Local {
+            return Err(self.invalid(
+                table,
+                "hardware",
+                "the hardware path supports `routing = \"local\"` only (each module's tendons \
+                 anchored at its own plates)"
+                    .into(),
+            ));
+        }
+        let Some(tables) = &raw.module else {
+            return Err(self.invalid(
+                table,
+                "hardware.module",
+                format!(
+                    "give one [[hardware.module]] table per module ({})",
+                    modules.len()
+                ),
+            ));
+        };
+        if tables.get_ref().len() != modules.len() {
+            return Err(self.invalid(
+                &tables.span(),
+                "hardware.module",
+                format!(
+                    "has {} tables, the robot has {} modules; give one per module, base first",
+                    tables.get_ref().len(),
+                    modules.len()
+                ),
+            ));
+        }
+        let mut seen: Vec<(u8, String)> = Vec::new();
+        let mut out = Vec::with_capacity(modules.len());
+        for (i, (raw, module)) in tables.get_ref().iter().zip(modules).enumerate() {
+            let prefix = format!("hardware.module[{}]", i + 1);
+            let hardware = self.module_hardware(raw, module, &prefix)?;
+            for (k, id) in hardware.servo_ids.iter().enumerate() {
+                if let Some((_, other)) = seen.iter().find(|(s, _)| s == id) {
+                    return Err(self.invalid(
+                        &raw.servo_ids.get_ref()[k].span(),
+                        &format!("{prefix}.servo_ids"),
+                        format!("servo ID {id} is already used by {other}; IDs must be unique"),
+                    ));
+                }
+                seen.push((*id, format!("{prefix} tendon {}", k + 1)));
+            }
+            out.push(hardware);
+        }
+        Ok(Hardware {
+            baud,
+            reply_timeout,
+            retries,
+            max_consecutive_errors,
+            velocity_source: match raw.velocity {
+                None | Some(RawVelocity::Servo) => VelocitySource::Servo,
+                Some(RawVelocity::Difference) => VelocitySource::Difference,
+            },
+            velocity_filter,
+            model_number,
+            current_unit,
+            position_unit,
+            velocity_unit,
+            set_point,
+            modules: out,
+        })
+    }
+
+    fn module_hardware(
+        &self,
+        raw: &RawModuleHardware,
+        module: &Module,
+        prefix: &str,
+    ) -> Result<ModuleHardware, FileError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        if module.tendon_angles.len() != 3 {
+            return Err(self.invalid(
+                &raw.servo_ids.span(),
+                &field("servo_ids"),
+                format!(
+                    "the module has {} tendons; the hardware path needs exactly 3 per module",
+                    module.tendon_angles.len()
+                ),
+            ));
+        }
+        let three_of = |len: usize, span: &Range<usize>, name: &str, what: &str| {
+            if len == 3 {
+                Ok(())
+            } else {
+                Err(self.invalid(
+                    span,
+                    &field(name),
+                    format!("needs 3 {what} (one per tendon), got {len} entries"),
+                ))
+            }
+        };
+        let ids = raw.servo_ids.get_ref();
+        three_of(ids.len(), &raw.servo_ids.span(), "servo_ids", "servo IDs")?;
+        let mut servo_ids = [0u8; 3];
+        for (slot, id) in servo_ids.iter_mut().zip(ids) {
+            *slot = self.integer(id, &field("servo_ids"), 0, 252)? as u8;
+        }
+        let pulley_radius = self.number(
+            &raw.pulley_radius,
+            &field("pulley_radius"),
+            Rule::Positive,
+            "m",
+        )?;
+        let angles = self.list(
+            raw.zero_angle_deg.get_ref(),
+            &field("zero_angle_deg"),
+            Rule::Finite,
+            "°",
+        )?;
+        three_of(
+            angles.len(),
+            &raw.zero_angle_deg.span(),
+            "zero_angle_deg",
+            "angles",
+        )?;
+        let zero_angles = [
+            angles[0].to_radians(),
+            angles[1].to_radians(),
+            angles[2].to_radians(),
+        ];
+        let zero_lengths = match &raw.zero_length {
+            Some(v) => {
+                let values = self.list(v.get_ref(), &field("zero_length"), Rule::Positive, "m")?;
+                three_of(values.len(), &v.span(), "zero_length", "lengths")?;
+                [values[0], values[1], values[2]]
+            }
+            None => [module.rest_length; 3],
+        };
+        let signs = raw.direction.get_ref();
+        three_of(signs.len(), &raw.direction.span(), "direction", "signs")?;
+        let mut directions = [0.0; 3];
+        for (slot, sign) in directions.iter_mut().zip(signs) {
+            *slot = match *sign.get_ref() {
+                1 => 1.0,
+                -1 => -1.0,
+                other => {
+                    return Err(self.invalid(
+                        &sign.span(),
+                        &field("direction"),
+                        format!("each sign must be 1 or -1, got {other}"),
+                    ));
+                }
+            };
+        }
+        let actuator_gain = self.number(
+            &raw.actuator_gain,
+            &field("actuator_gain"),
+            Rule::Positive,
+            "N/mA",
+        )?;
+        let limits = self.list(
+            raw.tension_limits.get_ref(),
+            &field("tension_limits"),
+            Rule::NonNegative,
+            "N",
+        )?;
+        if limits.len() != 2 || limits[0] >= limits[1] {
+            return Err(self.invalid(
+                &raw.tension_limits.span(),
+                &field("tension_limits"),
+                format!("needs [f_min, f_max] with 0 ≤ f_min < f_max in N, got {limits:?}"),
+            ));
+        }
+        Ok(ModuleHardware {
+            servo_ids,
+            pulley_radius,
+            zero_angles,
+            zero_lengths,
+            directions,
+            actuator_gain,
+            tension_limits: [limits[0], limits[1]],
+        })
+    }
+}
+
+impl Hardware {
+    /// Every servo ID, module by module, tendon by tendon (the bus order).
+    pub fn servo_ids(&self) -> Vec<u8> {
+        self.modules.iter().flat_map(|m| m.servo_ids).collect()
+    }
+
+    /// The Baud Rate register value (0..=7) of [`Hardware::baud`].
+    pub fn baud_register(&self) -> u8 {
+        baud_register(self.baud).unwrap_or(3)
+    }
+}
+
+/// The X-series Baud Rate register value of `baud`, if it is a supported rate.
+pub fn baud_register(baud: u32) -> Option<u8> {
+    SUPPORTED_BAUDS
+        .iter()
+        .position(|&b| b == baud)
+        .map(|k| k as u8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::{Robot, RobotError};
+    use std::path::Path;
+
+    const EXAMPLE: &str = include_str!("../../robots/hardware-example.toml");
+
+    /// A one-module robot with `hardware` appended after `[hardware]`.
+    fn parse(hardware: &str) -> Result<Robot, RobotError> {
+        let text = format!("[[module]]\n[hardware]\n{hardware}");
+        Robot::parse(&text, Path::new("robots/x.toml"))
+    }
+
+    const MODULE: &str = "[[hardware.module]]\nservo_ids = [1, 2, 3]\npulley_radius = 0.02\n\
+                          zero_angle_deg = [180, 180, 180]\ndirection = [1, -1, 1]\n\
+                          actuator_gain = 0.08\ntension_limits = [0.2, 40]\n";
+
+    #[track_caller]
+    fn assert_invalid(hardware: &str, line: usize, field: &str, fragment: &str) {
+        match parse(hardware) {
+            Err(RobotError::Invalid {
+                line: l,
+                field: f,
+                message,
+                ..
+            }) => {
+                assert_eq!((l, f.as_str()), (line, field), "message: {message}");
+                assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
+            }
+            other => panic!("expected an Invalid error on {field}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn example_file_parses_with_its_values() {
+        let robot = Robot::parse(EXAMPLE, Path::new("robots/hardware-example.toml")).unwrap();
+        let hw = robot
+            .hardware
+            .as_ref()
+            .expect("the example has a [hardware] table");
+        assert_eq!(hw.baud, 1_000_000);
+        assert_eq!(hw.baud_register(), 3);
+        assert_eq!(hw.servo_ids(), vec![1, 2, 3, 4, 5, 6]);
+        assert_eq!(hw.set_point, vec![0.0, 0.0, -0.15, 0.0, -0.065, 0.0]);
+        assert_eq!(hw.velocity_source, VelocitySource::Servo);
+        assert!((hw.reply_timeout - 0.010).abs() < 1e-15);
+        assert_eq!(hw.modules[0].directions, [1.0, -1.0, 1.0]);
+        assert_eq!(hw.modules[1].directions, [1.0, 1.0, -1.0]);
+        assert!((hw.modules[0].zero_angles[0] - std::f64::consts::PI).abs() < 1e-15);
+        // The zero length defaults to the module's rest length.
+        assert_eq!(hw.modules[1].zero_lengths, [0.06; 3]);
+        // The paper's structure: the example reuses the paper-sim model.
+        assert_eq!(robot.structure(), Robot::paper_sim().structure());
+    }
+
+    #[test]
+    fn defaults_fill_the_optional_fields() {
+        let hw = parse(MODULE).unwrap().hardware.unwrap();
+        assert_eq!(hw.baud, defaults::BAUD);
+        assert_eq!(hw.retries, defaults::RETRIES);
+        assert_eq!(hw.max_consecutive_errors, defaults::MAX_CONSECUTIVE_ERRORS);
+        assert_eq!(hw.model_number, 1020);
+        assert_eq!(hw.set_point, vec![0.0; 3]);
+        assert_eq!(hw.current_unit, 2.69);
+        assert!((hw.velocity_filter - 0.03).abs() < 1e-15);
+        assert_eq!(hw.modules[0].zero_lengths, [0.1; 3]);
+        let robot = Robot::parse("[[module]]\n", Path::new("x.toml")).unwrap();
+        assert!(robot.hardware.is_none());
+    }
+
+    #[test]
+    fn values_are_checked_with_file_line_and_field() {
+        assert_invalid(
+            &format!("baud = 1234\n{MODULE}"),
+            3,
+            "hardware.baud",
+            "not an X-series baud rate",
+        );
+        assert_invalid(
+            &format!("reply_timeout_ms = 0\n{MODULE}"),
+            3,
+            "hardware.reply_timeout_ms",
+            "> 0 ms",
+        );
+        assert_invalid(
+            &format!("max_consecutive_errors = 0\n{MODULE}"),
+            3,
+            "hardware.max_consecutive_errors",
+            "1..=1000",
+        );
+        assert_invalid(
+            &format!("operating_mode = \"pwm\"\n{MODULE}"),
+            3,
+            "hardware.operating_mode",
+            "`pwm` is not supported",
+        );
+        assert!(parse(&format!("operating_mode = \"current\"\n{MODULE}")).is_ok());
+        assert_invalid(
+            &format!("set_point = [0, 0]\n{MODULE}"),
+            3,
+            "hardware.set_point",
+            "has 2 entries, the robot has 3",
+        );
+        let module = |from: &str, to: &str| MODULE.replace(from, to);
+        // MODULE starts on line 3: servo_ids line 4, pulley 5, zero angles 6, direction 7,
+        // gain 8, limits 9.
+        assert_invalid(
+            &module("[1, 2, 3]", "[1, 2, 253]"),
+            4,
+            "hardware.module[1].servo_ids",
+            "0..=252, got 253",
+        );
+        assert_invalid(
+            &module("[1, 2, 3]", "[1, 2, 2]"),
+            4,
+            "hardware.module[1].servo_ids",
+            "servo ID 2 is already used",
+        );
+        assert_invalid(
+            &module("[1, 2, 3]", "[1, 2]"),
+            4,
+            "hardware.module[1].servo_ids",
+            "needs 3 servo IDs",
+        );
+        assert_invalid(
+            &module("0.02", "-0.02"),
+            5,
+            "hardware.module[1].pulley_radius",
+            "> 0 m",
+        );
+        assert_invalid(
+            &module("[180, 180, 180]", "[180, nan, 180]"),
+            6,
+            "hardware.module[1].zero_angle_deg",
+            "entry 2",
+        );
+        assert_invalid(
+            &module("[1, -1, 1]", "[1, 0, 1]"),
+            7,
+            "hardware.module[1].direction",
+            "1 or -1, got 0",
+        );
+        assert_invalid(
+            &module("0.08", "0"),
+            8,
+            "hardware.module[1].actuator_gain",
+            "> 0 N/mA",
+        );
+        assert_invalid(
+            &module("[0.2, 40]", "[40, 0.2]"),
+            9,
+            "hardware.module[1].tension_limits",
+            "f_min < f_max",
+        );
+        assert_invalid(
+            &module("[0.2, 40]", "[-1, 40]"),
+            9,
+            "hardware.module[1].tension_limits",
+            "≥ 0 N",
+        );
+        assert_invalid(
+            "baud = 57600\n",
+            2,
+            "hardware.module",
+            "one [[hardware.module]] table per module",
+        );
+        assert_invalid(
+            &format!("{MODULE}{MODULE}"),
+            3,
+            "hardware.module",
+            "has 2 tables, the robot has 1 modules",
+        );
+    }
+
+    #[test]
+    fn unknown_and_mistyped_fields_are_syntax_errors() {
+        let error = parse(&format!("baud_rate = 57600\n{MODULE}")).unwrap_err();
+        let text = error.to_string();
+        assert!(
+            text.starts_with("robots/x.toml:3:1: unknown field `baud_rate` in [hardware]"),
+            "{text}"
+        );
+        let error = parse(&MODULE.replace("pulley_radius", "pully_radius")).unwrap_err();
+        let text = error.to_string();
+        assert!(
+            text.contains("unknown field `pully_radius` in [[hardware.module]] 1"),
+            "{text}"
+        );
+        let error = parse(&format!("velocity = \"guess\"\n{MODULE}")).unwrap_err();
+        assert!(
+            error
+                .to_string()
+                .contains("expected `servo` or `difference`"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn through_routing_and_four_tendons_are_refused() {
+        let text = format!("routing = \"through\"\n[[module]]\n[hardware]\n{MODULE}");
+        let error = Robot::parse(&text, Path::new("x.toml")).unwrap_err();
+        assert!(
+            error.to_string().contains("`routing = \"local\"` only"),
+            "{error}"
+        );
+        let text =
+            format!("[[module]]\ntendon_angles_deg = [0, 90, 180, 270]\n[hardware]\n{MODULE}");
+        let error = Robot::parse(&text, Path::new("x.toml")).unwrap_err();
+        assert!(
+            error.to_string().contains("exactly 3 per module"),
+            "{error}"
+        );
+    }
+}

@@ -1,0 +1,19 @@
+//! The hardware path: the robot's Dynamixel servos over Protocol 2.0, driven by the same
+//! controller as the simulation, and an emulator of those servos for work without a robot.
+//!
+//! - [`control_table`]: the X-series registers used.
+//! - [`mapping`]: servo angles → `q`, `q̇`; `τ` → tensions → currents, and back.
+//! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
+//! - [`servo_io`]: safe start, the per-tick sync read/write with retries, safe stop.
+//! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`log`] its rows, CSV and
+//!   figures.
+//! - [`signal`]: Ctrl-C as a flag the loops poll; [`cli`]: the two subcommands' options.
+
+pub mod cli;
+pub mod control_table;
+pub mod emulator;
+pub mod log;
+pub mod mapping;
+pub mod run_loop;
+pub mod servo_io;
+pub mod signal;

@@ -1,0 +1,137 @@
+//! The servo emulator's Protocol 2.0 semantics and pacing, driven through the bus client
+//! over a pseudo-terminal: what a real X-series servo would answer.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, mpsc};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use serialport::{SerialPort, TTYPort};
+use softcbf::hardware::control_table as table;
+use softcbf::hardware::emulator::{self, EmulatorSettings, wire_time};
+use softcbf::protocol::{BROADCAST_ID, Bus, BusError, StatusError};
+use softcbf_codegen::robot::Robot;
+
+/// Runs `body` against an emulator of the example robot at `baud`.
+fn with_emulator(baud: u32, body: impl FnOnce(&mut Bus<TTYPort>)) {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../robots/hardware-example.toml"
+    ));
+    let robot = Robot::load(path).unwrap();
+    let (mut master, slave) = TTYPort::pair().unwrap();
+    master.set_timeout(Duration::from_millis(20)).unwrap();
+    let name = slave.name().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = mpsc::channel();
+    let server = {
+        let stop = stop.clone();
+        thread::spawn(move || {
+            let settings = EmulatorSettings::new(baud);
+            let mut ready = || tx.send(()).unwrap();
+            emulator::serve(&robot, &settings, &mut master, &stop, &mut ready, None)
+        })
+    };
+    rx.recv().unwrap();
+    let port = serialport::new(&name, baud)
+        .timeout(Duration::from_millis(1))
+        .open_native()
+        .unwrap();
+    let mut bus = Bus::new(port, Duration::from_millis(200));
+    body(&mut bus);
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap().unwrap();
+    drop(slave);
+}
+
+fn status_code(result: Result<StatusError, BusError>) -> u8 {
+    match result {
+        Ok(status) => status.code,
+        Err(BusError::Status { error, .. }) => error.code,
+        Err(other) => panic!("expected a status packet, got {other}"),
+    }
+}
+
+#[test]
+fn registers_answer_like_an_x_series_servo() {
+    with_emulator(1_000_000, |bus| {
+        let info = bus.ping(4).unwrap();
+        assert_eq!(info.model_number, 1020);
+        assert!(matches!(bus.ping(9), Err(BusError::Timeout { id: 9, .. })));
+        let mut byte = [0u8];
+        bus.read(2, table::ID, &mut byte).unwrap();
+        assert_eq!(byte[0], 2);
+        bus.read(2, table::BAUD_RATE, &mut byte).unwrap();
+        assert_eq!(byte[0], 3, "1 Mbit/s");
+        bus.read(2, table::OPERATING_MODE, &mut byte).unwrap();
+        assert_eq!(byte[0], 3, "position control, as from the factory");
+        // Operating Mode is writable with torque off only.
+        assert_eq!(status_code(bus.write(2, table::OPERATING_MODE, &[0])), 0);
+        assert_eq!(status_code(bus.write(2, table::TORQUE_ENABLE, &[1])), 0);
+        assert_eq!(
+            status_code(bus.write(2, table::OPERATING_MODE, &[3])),
+            StatusError::ACCESS_ERROR
+        );
+        assert_eq!(
+            status_code(bus.write(2, table::TORQUE_ENABLE, &[2])),
+            StatusError::DATA_RANGE_ERROR
+        );
+        // Goal Current within ±Current Limit (1193).
+        assert_eq!(
+            status_code(bus.write(2, table::GOAL_CURRENT, &1193i16.to_le_bytes())),
+            0
+        );
+        assert_eq!(
+            status_code(bus.write(2, table::GOAL_CURRENT, &1194i16.to_le_bytes())),
+            StatusError::DATA_LIMIT_ERROR
+        );
+        // Read-only and out-of-table addresses.
+        assert_eq!(
+            status_code(bus.write(2, table::PRESENT_POSITION, &[0; 4])),
+            StatusError::ACCESS_ERROR
+        );
+        let mut far = [0u8; 4];
+        assert!(matches!(
+            bus.read(2, 200, &mut far),
+            Err(BusError::Status { .. })
+        ));
+        // Present Current follows the goal while pulling; reboot drops torque and goal.
+        let mut current = [0u8; 2];
+        bus.read(2, table::PRESENT_CURRENT, &mut current).unwrap();
+        assert_eq!(i16::from_le_bytes(current), 1193);
+        assert_eq!(status_code(bus.reboot(2)), 0);
+        bus.read(2, table::TORQUE_ENABLE, &mut byte).unwrap();
+        assert_eq!(byte[0], 0);
+        bus.read(2, table::PRESENT_CURRENT, &mut current).unwrap();
+        assert_eq!(i16::from_le_bytes(current), 0);
+        // A broadcast write is obeyed by all and answered by none.
+        bus.write(BROADCAST_ID, table::TORQUE_ENABLE, &[1]).unwrap();
+        for id in 1..=6 {
+            bus.read(id, table::TORQUE_ENABLE, &mut byte).unwrap();
+            assert_eq!(byte[0], 1, "servo {id}");
+        }
+        bus.write(BROADCAST_ID, table::TORQUE_ENABLE, &[0]).unwrap();
+        assert_eq!(
+            bus.counters().timeouts,
+            1,
+            "only the ping of the absent servo 9"
+        );
+    });
+}
+
+#[test]
+fn replies_are_paced_by_wire_time() {
+    // At 57600 bit/s a sync read of six 10-byte blocks is 20 + 6 × 21 bytes on the wire.
+    let baud = 57_600;
+    with_emulator(baud, |bus| {
+        let ids = [1, 2, 3, 4, 5, 6];
+        let mut out = [0u8; 60];
+        let start = Instant::now();
+        bus.sync_read(table::STATE_ADDRESS, table::STATE_LENGTH, &ids, &mut out)
+            .unwrap();
+        let elapsed = start.elapsed();
+        let wire = wire_time(20 + 6 * 21, baud);
+        assert!(elapsed >= wire, "{elapsed:?} < wire time {wire:?}");
+    });
+}
