@@ -69,6 +69,9 @@ pub struct Hardware {
     pub velocity_unit: f64,
     /// Default set point `q̄` (length `3·modules`); zeros when not given.
     pub set_point: Vec<f64>,
+    /// Correct the HOCBF rows for the loop's zero-order hold (`softcbf::control`); default
+    /// `false` (the paper's rows).
+    pub hold_correction: bool,
     /// One entry per module, base first.
     pub modules: Vec<ModuleHardware>,
 }
@@ -121,6 +124,7 @@ pub(crate) struct RawHardware {
     position_unit_deg: Num,
     velocity_unit_rpm: Num,
     set_point: List,
+    hold_correction: Option<bool>,
     module: Option<Spanned<Vec<RawModuleHardware>>>,
 }
 
@@ -329,6 +333,7 @@ impl Checker<'_> {
             position_unit,
             velocity_unit,
             set_point,
+            hold_correction: raw.hold_correction.unwrap_or(false),
             modules: out,
         })
     }

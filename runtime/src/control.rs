@@ -34,6 +34,10 @@ pub struct ControllerSettings {
     /// Hold period `Δ` [s] of the hold correction (module docs); `0` (the default) gives the
     /// paper's rows `A = J M⁻¹`.
     pub hold_correction: f64,
+    /// Constant limits on the command, `A_u τ ≥ b_u`: rows (row-major, `nq` columns) and
+    /// right-hand sides, solved together with the barrier rows (e.g. cable tensions kept in
+    /// `[f_min, f_max]`). Default: none.
+    pub input_limits: (Vec<f64>, Vec<f64>),
     /// Settings of the safety QP.
     pub qp: QpSettings,
 }
@@ -48,6 +52,7 @@ impl ControllerSettings {
             barrier_gains: model.robot.barrier_gains,
             filter: true,
             hold_correction: 0.0,
+            input_limits: (Vec::new(), Vec::new()),
             qp: QpSettings::default(),
         }
     }
@@ -67,6 +72,23 @@ impl ControllerSettings {
                     reason: format!("entry {} is {}; gains must be finite", k + 1, matrix[k]),
                 });
             }
+        }
+        let (limit_rows, limit_rhs) = &self.input_limits;
+        if limit_rows.len() != limit_rhs.len() * nq {
+            return Err(ControllerError::Setting {
+                field: "input_limits",
+                reason: format!(
+                    "has {} row entries for {} limits of {nq} columns",
+                    limit_rows.len(),
+                    limit_rhs.len()
+                ),
+            });
+        }
+        if limit_rows.iter().chain(limit_rhs).any(|v| !v.is_finite()) {
+            return Err(ControllerError::Setting {
+                field: "input_limits",
+                reason: "must be finite".to_string(),
+            });
         }
         if !(self.hold_correction.is_finite() && self.hold_correction >= 0.0) {
             return Err(ControllerError::Setting {
@@ -161,7 +183,8 @@ pub struct Controller {
     barriers: Vec<f64>,
     jacobian: Vec<f64>,
     jdot_qd: Vec<f64>,
-    /// HOCBF rows `A = J M⁻¹`, row-major `nb × nq`, and right-hand sides.
+    /// HOCBF rows `A = J M⁻¹`, row-major `nb × nq`, then the input limits; and right-hand
+    /// sides.
     rows: Vec<f64>,
     rhs: Vec<f64>,
     /// `n = h + G + K q + D q̇`, then `M⁻¹ n`.
@@ -180,7 +203,13 @@ impl Controller {
     pub fn new(model: &Model, settings: ControllerSettings) -> Result<Controller, ControllerError> {
         let (nq, nb) = (model.nq(), model.nb());
         settings.validate(nq)?;
-        let qp = SafetyQp::new(nq, nb, settings.qp)?;
+        let (limit_rows, limit_rhs) = &settings.input_limits;
+        let rows = nb + limit_rhs.len();
+        let qp = SafetyQp::new(nq, rows, settings.qp)?;
+        let mut constraint_rows = vec![0.0; rows * nq];
+        constraint_rows[nb * nq..].copy_from_slice(limit_rows);
+        let mut constraint_rhs = vec![0.0; rows];
+        constraint_rhs[nb..].copy_from_slice(limit_rhs);
         Ok(Controller {
             settings,
             nq,
@@ -189,8 +218,8 @@ impl Controller {
             barriers: vec![0.0; nb],
             jacobian: vec![0.0; nb * nq],
             jdot_qd: vec![0.0; nb],
-            rows: vec![0.0; nb * nq],
-            rhs: vec![0.0; nb],
+            rows: constraint_rows,
+            rhs: constraint_rhs,
             drift: vec![0.0; nq],
             inverse_mass: vec![0.0; nq * nq],
             hold_factor: vec![0.0; nq * nq],
@@ -231,8 +260,8 @@ impl Controller {
         &self.jacobian
     }
 
-    /// HOCBF rows `A = J M⁻¹` (row-major `nb × nq`) and right-hand sides `b` of the last
-    /// tick: the filtered `τ` satisfies `A τ ≥ b`.
+    /// HOCBF rows `A = J M⁻¹` (row-major, the first `nb` rows; the input limits follow) and
+    /// right-hand sides `b` of the last tick: the filtered `τ` satisfies `A τ ≥ b`.
     pub fn constraints(&self) -> (&[f64], &[f64]) {
         (&self.rows, &self.rhs)
     }

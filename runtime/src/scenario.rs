@@ -273,6 +273,7 @@ impl ScenarioFile {
                 } else {
                     0.0
                 },
+                input_limits: (Vec::new(), Vec::new()),
                 qp: QpSettings::default(),
             },
             control_period,

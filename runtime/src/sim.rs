@@ -212,7 +212,8 @@ pub fn simulate(
                 }
                 if status == TickStatus::Relaxed {
                     counts.relaxed += 1;
-                    for &row in &report.relaxed_rows {
+                    // Rows past the barriers are input limits, not barriers.
+                    for &row in report.relaxed_rows.iter().filter(|&&row| row < nb) {
                         relaxed_ticks[row] += 1;
                     }
                 }

@@ -379,3 +379,72 @@ fn contradictory_rows_are_relaxed_and_reported() {
     assert!(!report.relaxed_rows.is_empty());
     assert!(tau.iter().all(|t| t.is_finite()));
 }
+
+/// Limits on the command are rows of the same QP: the filtered command satisfies them and
+/// the barrier rows together; loose limits change nothing.
+#[test]
+fn input_limits_are_solved_with_the_barrier_rows() {
+    let model = paper_model();
+    let nq = model.nq();
+    let q = [0.075, 0.0, -0.04, 0.0, -0.05, -0.05];
+    let qd = [0.2, 0.0, -0.1, 0.0, -0.2, -0.1];
+    let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
+    let zero = zeros(nq);
+    let reference = Reference {
+        q: &set_point,
+        qd: &zero,
+        qdd: &zero,
+    };
+    // |τ_i| ≤ limit as rows τ_i ≥ −limit and −τ_i ≥ −limit.
+    let boxed = |limit: f64| {
+        let mut rows = vec![0.0; 2 * nq * nq];
+        let mut rhs = vec![0.0; 2 * nq];
+        for i in 0..nq {
+            rows[(2 * i) * nq + i] = 1.0;
+            rows[(2 * i + 1) * nq + i] = -1.0;
+            rhs[2 * i] = -limit;
+            rhs[2 * i + 1] = -limit;
+        }
+        (rows, rhs)
+    };
+    let mut free = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    assert_eq!(
+        tick(&model, &mut free, &q, &qd, reference),
+        TickStatus::Filtered
+    );
+    let mut settings = ControllerSettings::paper(&model);
+    settings.input_limits = boxed(1e6);
+    let mut loose = Controller::new(&model, settings).unwrap();
+    assert_eq!(
+        tick(&model, &mut loose, &q, &qd, reference),
+        TickStatus::Filtered
+    );
+    for (a, b) in loose.tau().iter().zip(free.tau()) {
+        assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    let limit = 0.5 * free.tau().iter().fold(0.0_f64, |m, t| m.max(t.abs()));
+    let mut settings = ControllerSettings::paper(&model);
+    settings.input_limits = boxed(limit);
+    let mut tight = Controller::new(&model, settings).unwrap();
+    let status = tick(&model, &mut tight, &q, &qd, reference);
+    assert!(
+        matches!(status, TickStatus::Filtered | TickStatus::Relaxed),
+        "{status:?}"
+    );
+    let (rows, rhs) = tight.constraints();
+    assert_eq!(rhs.len(), model.nb() + 2 * nq);
+    if status == TickStatus::Filtered {
+        for (k, b) in rhs.iter().enumerate() {
+            let lhs: f64 = rows[k * nq..(k + 1) * nq]
+                .iter()
+                .zip(tight.tau())
+                .map(|(a, t)| a * t)
+                .sum();
+            assert!(lhs >= b - 1e-7 * (1.0 + b.abs()), "row {k}: {lhs} < {b}");
+        }
+    }
+    // Wrong sizes are refused when the controller is built.
+    let mut settings = ControllerSettings::paper(&model);
+    settings.input_limits = (vec![1.0; nq + 1], vec![0.0]);
+    assert!(Controller::new(&model, settings).is_err());
+}

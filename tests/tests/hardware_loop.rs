@@ -147,10 +147,14 @@ fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> 
     Outcome { summary, log, bus }
 }
 
-/// The discretization tolerance: measured minimum barrier ≈ −1.8e-3 m during the approach
-/// and ≈ −0.6e-3 m at rest (release build, 1 Mbit/s, 33 Hz; see docs/hardware.md), with
-/// margin for a loaded CI machine.
-const BARRIER_TOLERANCE: f64 = -3e-3;
+/// The discretization tolerance of the example robot (tension limits in the filter's QP,
+/// hold correction on): measured minimum barrier −0.12e-3 to −0.25e-3 m (release build,
+/// 1 Mbit/s, 33 Hz; see docs/hardware.md); the target is −1e-3 m.
+const BARRIER_TOLERANCE: f64 = -1e-3;
+
+/// Without the hold correction (velocity from filtered differences): measured −0.4e-3 to
+/// −1.9e-3 m, with margin for a loaded CI machine.
+const BARRIER_TOLERANCE_UNCORRECTED: f64 = -3e-3;
 
 fn min_barrier(log: &MemoryLog) -> f64 {
     log.rows
@@ -334,10 +338,17 @@ fn velocity_from_filtered_differences_also_holds_the_barriers() {
     let mut robot = example();
     let hardware = robot.hardware.as_mut().unwrap();
     hardware.velocity_source = softcbf_codegen::hardware::VelocitySource::Difference;
+    // The hold correction leans on q̇ over the whole tick; the filtered difference lags
+    // by about a tick, and with it the corrected rows did worse (−9.6 mm) than the paper's
+    // (−0.4 mm) here, as robots/README.md says.
+    hardware.hold_correction = false;
     let out = run_with(robot, Faults::default(), 3.0, None);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);
     let min = min_barrier(&out.log);
     println!("minimum barrier {min:e}");
-    assert!(min >= BARRIER_TOLERANCE, "minimum barrier {min}");
+    assert!(
+        min >= BARRIER_TOLERANCE_UNCORRECTED,
+        "minimum barrier {min}"
+    );
 }

@@ -157,3 +157,30 @@ fn a_robot_without_hardware_is_refused() {
     let error = TendonMap::new(&Robot::paper_sim()).unwrap_err();
     assert!(error.to_string().contains("no [hardware] table"), "{error}");
 }
+
+/// The tension-limit rows given to the safety filter hold exactly when the tensions of the
+/// hand-written closed form lie in `[f_min, f_max]`.
+#[test]
+fn tension_limit_rows_are_the_tension_limits() {
+    let (robot, map) = example();
+    let (rows, rhs) = map.tension_limit_rows();
+    let nq = 6;
+    assert_eq!((rows.len(), rhs.len()), (2 * nq * nq, 2 * nq));
+    let mut rng = SplitMix(8);
+    for _ in 0..500 {
+        let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-20.0, 20.0)).collect();
+        for (i, hw) in robot.hardware.as_ref().unwrap().modules.iter().enumerate() {
+            let [f_min, f_max] = hw.tension_limits;
+            let f = tensions_by_hand([tau[3 * i], tau[3 * i + 1], tau[3 * i + 2]]);
+            for (k, f_k) in f.iter().enumerate() {
+                let row = 2 * (3 * i + k);
+                let value = |r: usize| -> f64 {
+                    let a = &rows[r * nq..(r + 1) * nq];
+                    a.iter().zip(&tau).map(|(x, t)| x * t).sum::<f64>() - rhs[r]
+                };
+                close(value(row), f_k - f_min, 1e-12);
+                close(value(row + 1), f_max - f_k, 1e-12);
+            }
+        }
+    }
+}

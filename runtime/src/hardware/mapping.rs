@@ -57,6 +57,11 @@ struct ModuleMap {
     hardware: ModuleHardware,
 }
 
+/// How far \[N\] a tension may lie outside its limits and still count as on them (a
+/// thousandth of a millinewton: far below a servo's current resolution, far above the
+/// safety QP's rounding).
+pub const CLAMP_TOLERANCE: f64 = 1e-6;
+
 /// The mapping of a whole robot; servo `3i + k` is tendon `k` of module `i`.
 #[derive(Clone, Debug)]
 pub struct TendonMap {
@@ -175,8 +180,10 @@ impl TendonMap {
     }
 
     /// Tensions \[N\] realizing `τ` (`f_i = A_i⁻¹ τ_i`), each held in `[f_min, f_max]`;
-    /// returns how many were held. A non-finite entry of `τ` gives `f_min` throughout
-    /// that module (counted as low clamps).
+    /// returns how many were held. A tension outside by less than [`CLAMP_TOLERANCE`] is
+    /// rounding of a command the safety filter put on the limit: it is held without being
+    /// counted. A non-finite entry of `τ` gives `f_min` throughout that module (counted as
+    /// low clamps).
     pub fn tensions_from_tau(&self, tau: &[f64], tensions: &mut [f64]) -> Clamps {
         let mut clamps = Clamps::default();
         for (i, m) in self.modules.iter().enumerate() {
@@ -184,10 +191,14 @@ impl TendonMap {
             for k in 0..3 {
                 let f: f64 = (0..3).map(|r| m.a_inv[k][r] * tau[3 * i + r]).sum();
                 tensions[3 * i + k] = if f.is_nan() || f < f_min {
-                    clamps.low += 1;
+                    if f.is_nan() || f < f_min - CLAMP_TOLERANCE {
+                        clamps.low += 1;
+                    }
                     f_min
                 } else if f > f_max {
-                    clamps.high += 1;
+                    if f > f_max + CLAMP_TOLERANCE {
+                        clamps.high += 1;
+                    }
                     f_max
                 } else {
                     f
@@ -195,6 +206,28 @@ impl TendonMap {
             }
         }
         clamps
+    }
+
+    /// The tension limits as rows on `τ` for the safety filter: `(A_i⁻¹)_k τ_i ≥ f_min` and
+    /// `−(A_i⁻¹)_k τ_i ≥ −f_max` for every tendon (row-major, `3 n_modules` columns), with
+    /// their right-hand sides; see [`crate::control::ControllerSettings::input_limits`].
+    pub fn tension_limit_rows(&self) -> (Vec<f64>, Vec<f64>) {
+        let nq = 3 * self.modules.len();
+        let (mut rows, mut rhs) = (Vec::new(), Vec::new());
+        for (i, m) in self.modules.iter().enumerate() {
+            let [f_min, f_max] = m.hardware.tension_limits;
+            for k in 0..3 {
+                for (sign, bound) in [(1.0, f_min), (-1.0, -f_max)] {
+                    let mut row = vec![0.0; nq];
+                    for r in 0..3 {
+                        row[3 * i + r] = sign * m.a_inv[k][r];
+                    }
+                    rows.extend(row);
+                    rhs.push(bound);
+                }
+            }
+        }
+        (rows, rhs)
     }
 
     /// Generalized forces `τ_i = A_i f_i` of tensions \[N\].

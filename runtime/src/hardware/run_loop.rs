@@ -192,6 +192,11 @@ pub fn run<P: ServoPort>(
     let hardware = map.hardware();
     let mut controller_settings = ControllerSettings::paper(model);
     controller_settings.filter = settings.filter;
+    // The filter chooses among the commands the cables can realize.
+    controller_settings.input_limits = map.tension_limit_rows();
+    if hardware.hold_correction {
+        controller_settings.hold_correction = 1.0 / settings.rate;
+    }
     let mut controller = Controller::new(model, controller_settings)?;
     let n = map.n_servos();
     let mut io = ServoIo::new(hardware.servo_ids());
