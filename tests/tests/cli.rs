@@ -142,8 +142,8 @@ fn model_report_has_every_key_with_reference_values() {
     assert_eq!((barriers.len(), jdot_qd.len()), (12, 12));
     for (r, b) in exact.iter().enumerate() {
         assert!(close(barriers[r], b.v, 0.2), "barrier {r}");
-        for k in 0..N {
-            assert!(close(jacobian[r][k], b.g[k], 2.0), "J[{r}][{k}]");
+        for (k, (got, exact)) in jacobian[r].iter().zip(&b.g).enumerate() {
+            assert!(close(*got, *exact, 2.0), "J[{r}][{k}]");
         }
         assert!(close(jdot_qd[r], b.dd, 0.1), "J̇q̇[{r}]");
     }
@@ -151,12 +151,9 @@ fn model_report_has_every_key_with_reference_values() {
     let dynamics = reference::dynamics(&robot, &q, &qd);
     let mass = matrix(&report["mass_matrix"], "mass_matrix", N, N);
     let scale_m = mass.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
-    for i in 0..N {
-        for j in 0..N {
-            assert!(
-                close(mass[i][j], dynamics.mass_matrix[i][j], scale_m),
-                "M[{i}][{j}]"
-            );
+    for (i, (row, exact_row)) in mass.iter().zip(&dynamics.mass_matrix).enumerate() {
+        for (j, (got, exact)) in row.iter().zip(exact_row).enumerate() {
+            assert!(close(*got, *exact, scale_m), "M[{i}][{j}]");
         }
     }
     let bias = numbers(&report["bias"], "bias");
