@@ -134,6 +134,36 @@ fn bench_dynamics(c: &mut Criterion) {
     }
     group.finish();
 
+    // Where the paper robot's time goes: each stage alone (the later stages reuse the
+    // joint terms of the last update_joints).
+    let model = model_with(2, "paper_sim");
+    let set = states(&model);
+    let mut ws = DynamicsWorkspace::new(&model);
+    let mut group = c.benchmark_group("dynamics_stages_paper_sim");
+    group.bench_function("update_joints", |bench| {
+        let mut k = 0;
+        bench.iter(|| {
+            let (q, qd) = &set[k % STATES];
+            k += 1;
+            update_joints(&model, &mut ws, black_box(q), black_box(qd));
+            black_box(&ws.transforms);
+        })
+    });
+    update_joints(&model, &mut ws, &set[0].0, &set[0].1);
+    group.bench_function("mass_matrix", |bench| {
+        bench.iter(|| {
+            mass_matrix(black_box(&model), &mut ws);
+            black_box(&ws.mass_matrix);
+        })
+    });
+    group.bench_function("bias_and_gravity", |bench| {
+        bench.iter(|| {
+            bias_and_gravity(black_box(&model), &mut ws, black_box(&set[0].1));
+            black_box((&ws.bias, &ws.gravity));
+        })
+    });
+    group.finish();
+
     // For reference: the whole forward dynamics (adds the Cholesky solve) of the paper robot.
     let model = model_with(2, "paper_sim");
     let set = states(&model);
