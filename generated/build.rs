@@ -3,8 +3,9 @@
 //! structures `hex_1`, `hex_4`, `hex_8`), and a registry that finds them by structure.
 //!
 //! The benchmark structures are always built, not put behind a feature: generating all of
-//! them takes < 0.5 s and compiling hex_4 and hex_8 adds ≈ 1 s and ≈ 2.5 s to a release
-//! build of this crate (measured with `scripts/measure-scaling`), and tests use hex_1, hex_4.
+//! them takes < 0.5 s and compiling hex_4 and hex_8 adds ≈ 0.5–1 s and ≈ 1.5–2.5 s to a
+//! release build of this crate (measured with `scripts/measure-scaling`, out of a 4-minute
+//! workspace build), and tests use hex_1 and hex_4.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
