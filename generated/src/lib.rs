@@ -3,7 +3,9 @@
 //! `build.rs` generates one module per robot structure found in the workspace's `robots/`
 //! directory (and in `SOFTCBF_ROBOTS`); each module has array-typed functions
 //! (`segment_transforms`, `plate_poses`, `barriers`, `barrier_terms`, `joint_terms`) and a
-//! `Model` implementing [`GeneratedModel`], the slice-based interface the runtime uses.
+//! `Model` implementing [`GeneratedModel`], the slice-based interface the runtime uses,
+//! and `SOURCE`, the generated text it was compiled from (`golden/paper_sim.rs` is the
+//! checked-in copy of the paper robot's, compared by the `golden` test of softcbf-tests).
 //! [`find`] picks the model of a structure. Numbers are never compiled in: every function
 //! takes the parameter vector `p` laid out by `softcbf_codegen::layout`.
 
