@@ -77,8 +77,8 @@ impl DynamicsWorkspace {
     }
 }
 
-/// Evaluates the generated joint terms at `(q, q̇)` and the parent→child transforms.
-/// Must precede [`mass_matrix`], [`bias_and_gravity`], [`nonlinear_effects`] and
+/// Evaluates the generated joint terms at `(q, q̇)`, the parent→child transforms and the
+/// composite inertias. Must precede [`mass_matrix`], [`bias_and_gravity`], [`nonlinear_effects`] and
 /// [`gravity_energy`].
 pub fn update_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &[f64]) {
     model.generated.joint_terms(
@@ -101,6 +101,15 @@ pub fn update_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &
             translation: *translation,
         };
     }
+    // Composite inertias, tip to base: body i and everything it carries, in frame i.
+    let n = ws.n;
+    for i in (0..n).rev() {
+        let mut composite = model.inertias[i];
+        if i + 1 < n {
+            composite.add(&ws.composite[i + 1].to_parent(&ws.transforms[i + 1]));
+        }
+        ws.composite[i] = composite;
+    }
 }
 
 #[inline]
@@ -121,49 +130,56 @@ fn subspace_transpose_times(s: &[[f64; 3]; 6], f: &Vec6) -> [f64; 3] {
 }
 
 /// `M(q)` by the composite-rigid-body algorithm into `ws.mass_matrix`.
-pub fn mass_matrix(model: &Model, ws: &mut DynamicsWorkspace) {
+pub fn mass_matrix(_model: &Model, ws: &mut DynamicsWorkspace) {
     let n = ws.n;
     let nq = 3 * n;
-    for i in (0..n).rev() {
-        let mut composite = model.inertias[i];
-        if i + 1 < n {
-            composite.add(&ws.composite[i + 1].to_parent(&ws.transforms[i + 1]));
-        }
-        ws.composite[i] = composite;
-    }
+    let m = &mut ws.mass_matrix[..nq * nq];
     for i in 0..n {
-        // F = I^c_i S_i, one column per coordinate of module i.
+        // F = I^c_i S_i, one column per coordinate of module i, carried to the base.
         let s = &ws.motion_subspace[i];
         let mut f: [Vec6; 3] = std::array::from_fn(|k| ws.composite[i].apply(&s.map(|row| row[k])));
         let mut j = i;
         loop {
+            let s_j = &ws.motion_subspace[j];
             for (k, column) in f.iter().enumerate() {
-                let block = subspace_transpose_times(&ws.motion_subspace[j], column);
-                for (l, value) in block.iter().enumerate() {
-                    ws.mass_matrix[(3 * j + l) * nq + 3 * i + k] = *value;
-                    ws.mass_matrix[(3 * i + k) * nq + 3 * j + l] = *value;
+                let block = subspace_transpose_times(s_j, column);
+                // Rows 3j..3j+3 of column 3i+k, and the symmetric entries.
+                for (l, &value) in block.iter().enumerate() {
+                    m[(3 * j + l) * nq + 3 * i + k] = value;
+                    m[(3 * i + k) * nq + 3 * j + l] = value;
                 }
             }
             if j == 0 {
                 break;
             }
-            for column in f.iter_mut() {
-                *column = ws.transforms[j].force_to_parent(column);
-            }
+            let x = &ws.transforms[j];
+            f = f.map(|column| x.force_to_parent(&column));
             j -= 1;
         }
     }
 }
 
+/// `G(q)` into `ws.gravity` from the composite inertias of [`update_joints`]: with
+/// `q̇ = q̈ = 0` every body only accelerates with the base's fictitious `−g`, so the force
+/// carried by joint `i` is `I^c_i a_g,i` (`a_g,i` that acceleration in frame `i`).
+fn gravity_from_composites(model: &Model, ws: &mut DynamicsWorkspace) {
+    let mut acceleration = base_acceleration(model);
+    for i in 0..ws.n {
+        acceleration = ws.transforms[i].motion_to_child(&acceleration);
+        let force = ws.composite[i].apply(&acceleration);
+        let tau = subspace_transpose_times(&ws.motion_subspace[i], &force);
+        ws.gravity[3 * i..3 * i + 3].copy_from_slice(&tau);
+    }
+}
+
 /// One recursive Newton–Euler pass with `q̈ = 0` and the base accelerating at
-/// `base_acceleration`: the generalized forces of the resulting body accelerations, and,
-/// if `with_velocity`, of the velocity terms. Writes them into `out`.
+/// `base_acceleration`: the generalized forces of the velocity terms and of the resulting
+/// body accelerations. Writes them into `out` and the body twists into `ws.velocities`.
 fn newton_euler(
     model: &Model,
     ws: &mut DynamicsWorkspace,
     qd: &[f64],
     base_acceleration: Vec6,
-    with_velocity: bool,
     out: Output,
 ) {
     let n = ws.n;
@@ -171,39 +187,33 @@ fn newton_euler(
     let mut parent_acceleration = base_acceleration;
     for i in 0..n {
         let x = &ws.transforms[i];
+        let joint_velocity = subspace_times(&ws.motion_subspace[i], &qd[3 * i..3 * i + 3]);
+        let mut v = x.motion_to_child(&parent_velocity);
+        for (vi, vj) in v.iter_mut().zip(&joint_velocity) {
+            *vi += vj;
+        }
         let mut a = x.motion_to_child(&parent_acceleration);
+        let coriolis = cross_motion(&v, &joint_velocity);
+        for ((ar, br), cr) in a.iter_mut().zip(&ws.bias_acceleration[i]).zip(&coriolis) {
+            *ar += br + cr;
+        }
         let inertia = &model.inertias[i];
-        let f = if with_velocity {
-            let joint_velocity = subspace_times(&ws.motion_subspace[i], &qd[3 * i..3 * i + 3]);
-            let mut v = x.motion_to_child(&parent_velocity);
-            for (vi, vj) in v.iter_mut().zip(&joint_velocity) {
-                *vi += vj;
-            }
-            let coriolis = cross_motion(&v, &joint_velocity);
-            for ((ar, br), cr) in a.iter_mut().zip(&ws.bias_acceleration[i]).zip(&coriolis) {
-                *ar += br + cr;
-            }
-            let mut f = inertia.apply(&a);
-            let gyroscopic = cross_force(&v, &inertia.apply(&v));
-            for (fr, gr) in f.iter_mut().zip(&gyroscopic) {
-                *fr += gr;
-            }
-            ws.velocities[i] = v;
-            parent_velocity = v;
-            f
-        } else {
-            inertia.apply(&a)
-        };
+        let mut f = inertia.apply(&a);
+        let gyroscopic = cross_force(&v, &inertia.apply(&v));
+        for (fr, gr) in f.iter_mut().zip(&gyroscopic) {
+            *fr += gr;
+        }
+        ws.velocities[i] = v;
         ws.forces[i] = f;
+        parent_velocity = v;
         parent_acceleration = a;
     }
+    let target = match out {
+        Output::Bias => &mut ws.bias,
+        Output::Nonlinear => &mut ws.nonlinear,
+    };
     for i in (0..n).rev() {
         let tau = subspace_transpose_times(&ws.motion_subspace[i], &ws.forces[i]);
-        let target = match out {
-            Output::Bias => &mut ws.bias,
-            Output::Gravity => &mut ws.gravity,
-            Output::Nonlinear => &mut ws.nonlinear,
-        };
         target[3 * i..3 * i + 3].copy_from_slice(&tau);
         if i > 0 {
             let to_parent = ws.transforms[i].force_to_parent(&ws.forces[i]);
@@ -217,7 +227,6 @@ fn newton_euler(
 #[derive(Clone, Copy)]
 enum Output {
     Bias,
-    Gravity,
     Nonlinear,
 }
 
@@ -227,18 +236,11 @@ fn base_acceleration(model: &Model) -> Vec6 {
     [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]]
 }
 
-/// `h = C(q, q̇) q̇` into `ws.bias`, `G(q)` into `ws.gravity` and their sum into
-/// `ws.nonlinear` (two RNEA passes).
+/// `h = C(q, q̇) q̇` into `ws.bias` (one RNEA pass), `G(q)` into `ws.gravity` (from the
+/// composite inertias) and their sum into `ws.nonlinear`.
 pub fn bias_and_gravity(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
-    newton_euler(model, ws, qd, [0.0; 6], true, Output::Bias);
-    newton_euler(
-        model,
-        ws,
-        qd,
-        base_acceleration(model),
-        false,
-        Output::Gravity,
-    );
+    newton_euler(model, ws, qd, [0.0; 6], Output::Bias);
+    gravity_from_composites(model, ws);
     for ((sum, h), g) in ws.nonlinear.iter_mut().zip(&ws.bias).zip(&ws.gravity) {
         *sum = h + g;
     }
@@ -247,14 +249,7 @@ pub fn bias_and_gravity(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
 /// `h + G` into `ws.nonlinear` in one RNEA pass (what forward dynamics and the controller
 /// need; `ws.bias` and `ws.gravity` are left as they were).
 pub fn nonlinear_effects(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
-    newton_euler(
-        model,
-        ws,
-        qd,
-        base_acceleration(model),
-        true,
-        Output::Nonlinear,
-    );
+    newton_euler(model, ws, qd, base_acceleration(model), Output::Nonlinear);
 }
 
 /// `½ q̇ᵀ M q̇`, from the body twists of the last velocity pass ([`bias_and_gravity`] or
