@@ -1,0 +1,91 @@
+//! Criterion benchmarks of the safe controller and the simulator (issue 4): one control
+//! tick of the paper robot (model, HOCBF rows, QP), and the paper's whole 10 s scenario.
+//!
+//! The ticks are taken at the states of the paper scenario's filtered run (every 10th
+//! tick of 10 s), cycled, so the QP sees its real mix of active sets. Run with
+//! `cargo bench -p softcbf --bench control`; the simulator bench also prints the split
+//! between control ticks and integration of one run.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use softcbf::cli::load_robot;
+use softcbf::control::{Controller, Reference, tick};
+use softcbf::model::Model;
+use softcbf::scenario::{Scenario, ScenarioFile};
+use softcbf::sim::simulate;
+
+fn paper() -> (Model, Scenario) {
+    let model = Model::new(load_robot(None).expect("embedded robot")).expect("paper model");
+    let scenario = ScenarioFile::paper_sim()
+        .resolve(&model)
+        .expect("paper scenario");
+    (model, scenario)
+}
+
+fn bench_tick(c: &mut Criterion) {
+    let (model, scenario) = paper();
+    let nq = model.nq();
+    let run = simulate(&model, &scenario, true, &mut |_| {}).expect("simulation");
+    let states: Vec<(Vec<f64>, Vec<f64>)> = (0..run.record.len())
+        .step_by(10)
+        .filter_map(|k| run.record.row(k))
+        .map(|row| (row.q.to_vec(), row.qd.to_vec()))
+        .collect();
+    let set_point = scenario.reference.final_target().to_vec();
+    let zero = vec![0.0; nq];
+    let mut group = c.benchmark_group("control_tick");
+    for (name, filter) in [("filter", true), ("pd_only", false)] {
+        let mut settings = scenario.controller.clone();
+        settings.filter = filter;
+        let mut controller = Controller::new(&model, settings).expect("controller");
+        let mut k = 0;
+        group.bench_function(name, |bench| {
+            bench.iter(|| {
+                let (q, qd) = &states[k % states.len()];
+                k += 1;
+                let reference = Reference {
+                    q: &set_point,
+                    qd: &zero,
+                    qdd: &zero,
+                };
+                black_box(tick(
+                    &model,
+                    &mut controller,
+                    black_box(q),
+                    black_box(qd),
+                    reference,
+                ))
+            })
+        });
+    }
+    group.finish();
+}
+
+fn bench_scenario(c: &mut Criterion) {
+    let (model, scenario) = paper();
+    let run = simulate(&model, &scenario, true, &mut |_| {}).expect("simulation");
+    let s = &run.summary;
+    eprintln!(
+        "paper scenario, one run: {:.3} s wall ({:.0}× real time); control ticks {:.3} s \
+         ({:.2} µs/tick), integration {:.3} s ({:.2} µs/tick, {:.1} right-hand sides/tick)",
+        s.wall_time,
+        s.real_time_factor,
+        s.control_time,
+        s.control_time / s.counts.ticks as f64 * 1e6,
+        s.integration_time,
+        s.integration_time / s.counts.ticks as f64 * 1e6,
+        s.integrator_rhs_evals as f64 / s.counts.ticks as f64,
+    );
+    let mut group = c.benchmark_group("paper_scenario_10s");
+    group.sample_size(10);
+    for (name, filter) in [("filter", true), ("pd_only", false)] {
+        group.bench_function(name, |bench| {
+            bench.iter(|| simulate(&model, &scenario, filter, &mut |_| {}).expect("simulation"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_tick, bench_scenario);
+criterion_main!(benches);
