@@ -488,20 +488,11 @@ mod tests {
                           zero_angle_deg = [180, 180, 180]\ndirection = [1, -1, 1]\n\
                           actuator_gain = 0.08\ntension_limits = [0.2, 40]\n";
 
+    /// Asserts that `hardware` fails validation at `line` on `field`, with `fragment` in the
+    /// message.
     #[track_caller]
     fn assert_invalid(hardware: &str, line: usize, field: &str, fragment: &str) {
-        match parse(hardware) {
-            Err(RobotError::Invalid {
-                line: l,
-                field: f,
-                message,
-                ..
-            }) => {
-                assert_eq!((l, f.as_str()), (line, field), "message: {message}");
-                assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
-            }
-            other => panic!("expected an Invalid error on {field}, got {other:?}"),
-        }
+        crate::toml_file::testing::assert_invalid(parse(hardware), line, field, fragment);
     }
 
     #[test]

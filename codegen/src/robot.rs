@@ -744,21 +744,11 @@ mod tests {
         Robot::parse(text, Path::new("robots/x.toml"))
     }
 
-    /// Asserts that `text` fails validation at `line` on `field`, with `fragment` in the message.
+    /// Asserts that `text` fails validation at `line` on `field`, with `fragment` in the
+    /// message.
     #[track_caller]
     fn assert_invalid(text: &str, line: usize, field: &str, fragment: &str) {
-        match parse(text) {
-            Err(RobotError::Invalid {
-                line: l,
-                field: f,
-                message,
-                ..
-            }) => {
-                assert_eq!((l, f.as_str()), (line, field), "message: {message}");
-                assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
-            }
-            other => panic!("expected an Invalid error on {field}, got {other:?}"),
-        }
+        crate::toml_file::testing::assert_invalid(parse(text), line, field, fragment);
     }
 
     /// Asserts a syntax error at `line:column` whose message contains `fragment`.

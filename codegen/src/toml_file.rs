@@ -292,3 +292,32 @@ pub fn describe(text: &str, at: usize, message: &str) -> String {
         None => format!("field `{}`: {message}", hit.field),
     }
 }
+
+/// Assertions shared by the parsers' unit tests.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::FileError;
+
+    /// Asserts that `result` is an [`FileError::Invalid`] at `line` on `field`, with
+    /// `fragment` in the message.
+    #[track_caller]
+    pub(crate) fn assert_invalid<T: std::fmt::Debug>(
+        result: Result<T, FileError>,
+        line: usize,
+        field: &str,
+        fragment: &str,
+    ) {
+        match result {
+            Err(FileError::Invalid {
+                line: l,
+                field: f,
+                message,
+                ..
+            }) => {
+                assert_eq!((l, f.as_str()), (line, field), "message: {message}");
+                assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
+            }
+            other => panic!("expected an Invalid error on {field}, got {other:?}"),
+        }
+    }
+}

@@ -1,5 +1,6 @@
 //! Shared helpers of the integration tests: independent reference evaluations.
 //! Nothing here uses the generated code; tests compare the two.
 
+pub mod alloc;
 pub mod highprec;
 pub mod reference;

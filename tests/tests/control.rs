@@ -7,7 +7,11 @@ use softcbf::control::{Controller, ControllerSettings, InvalidState, Reference, 
 use softcbf::dynamics::{DynamicsWorkspace, forward_dynamics};
 use softcbf::model::Model;
 use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
+use softcbf_tests::alloc::{CountingAlloc, allocations};
 use softcbf_tests::reference::SplitMix;
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
 
 fn paper_model() -> Model {
     Model::new(load_robot(None).expect("embedded robot")).expect("paper model")
@@ -447,4 +451,41 @@ fn input_limits_are_solved_with_the_barrier_rows() {
     let mut settings = ControllerSettings::paper(&model);
     settings.input_limits = (vec![1.0; nq + 1], vec![0.0]);
     assert!(Controller::new(&model, settings).is_err());
+}
+
+/// The control path allocates nothing per tick: a tick (filter on, with active rows) and a
+/// plant step between ticks, after the first of each has run.
+#[test]
+fn control_tick_and_plant_step_allocate_nothing() {
+    use softcbf::integrator::Tolerances;
+    use softcbf::plant::Plant;
+    let model = paper_model();
+    let nq = model.nq();
+    let mut settings = ControllerSettings::paper(&model);
+    settings.hold_correction = 1e-3;
+    let mut controller = Controller::new(&model, settings).unwrap();
+    let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
+    let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
+    let zero = zeros(nq);
+    let reference = Reference {
+        q: &set_point,
+        qd: &zero,
+        qdd: &zero,
+    };
+    let (mut active, mut before) = (0, 0);
+    for k in 0..400 {
+        if k == 1 {
+            before = allocations();
+        }
+        tick(&model, &mut controller, plant.q(), plant.qd(), reference);
+        active += usize::from(controller.qp_report().active > 0);
+        plant.tau_mut().copy_from_slice(controller.tau());
+        plant.advance(1e-3).unwrap();
+    }
+    assert_eq!(
+        allocations() - before,
+        0,
+        "allocations in 399 ticks and steps"
+    );
+    assert!(active > 0, "no tick exercised an active row");
 }

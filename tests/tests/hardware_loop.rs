@@ -15,7 +15,7 @@ use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, Faults};
 use softcbf::hardware::log::CsvLog;
 use softcbf::hardware::mapping::TendonMap;
-use softcbf::hardware::run_loop::{self, LogRow, RunLog, RunSettings, RunSummary, StopReason};
+use softcbf::hardware::run_loop::{self, Row, RunLog, RunSettings, RunSummary, StopReason};
 use softcbf::model::Model;
 use softcbf::protocol::Bus;
 use softcbf::record::Record;
@@ -33,17 +33,17 @@ fn example() -> Robot {
 static SERIAL: Mutex<()> = Mutex::new(());
 
 /// One logged row: time, `q`, barriers, extra columns.
-type Row = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+type Kept = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// Rows kept in memory.
 #[derive(Default)]
 struct MemoryLog {
-    rows: Vec<Row>,
+    rows: Vec<Kept>,
     flushed: bool,
 }
 
 impl RunLog for MemoryLog {
-    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String> {
+    fn push(&mut self, row: &Row<'_>) -> Result<(), String> {
         self.rows
             .push((row.t, row.q.to_vec(), row.b.to_vec(), row.extra.to_vec()));
         Ok(())
@@ -61,7 +61,7 @@ struct Tee<'a> {
 }
 
 impl RunLog for Tee<'_> {
-    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String> {
+    fn push(&mut self, row: &Row<'_>) -> Result<(), String> {
         self.memory.push(row)?;
         self.csv.as_mut().map_or(Ok(()), |csv| csv.push(row))
     }

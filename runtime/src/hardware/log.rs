@@ -1,4 +1,4 @@
-//! What `softcbf run` logs: one [`LogRow`] per tick into a [`RunLog`], streamed to
+//! What `softcbf run` logs: one [`Row`] per tick into a [`RunLog`], streamed to
 //! `trajectory.csv` (the `simulate` columns plus [`extra_columns`]), then the figures.
 
 use std::fs::File;
@@ -8,29 +8,10 @@ use crate::model::Model;
 use crate::plot::draw_figures;
 use crate::record::{Columns, CsvWriter, Record, Row};
 
-/// One log row (SI units), borrowed from the loop.
-#[derive(Clone, Copy, Debug)]
-pub struct LogRow<'a> {
-    /// Time of the reading since the first tick \[s\].
-    pub t: f64,
-    /// Measured `q` (NaN when the tick had no reading).
-    pub q: &'a [f64],
-    /// Measured `q̇`.
-    pub qd: &'a [f64],
-    /// Controller command `τ`.
-    pub tau: &'a [f64],
-    /// Nominal `τ_nom`.
-    pub tau_nom: &'a [f64],
-    /// Barriers.
-    pub b: &'a [f64],
-    /// The columns named by [`extra_columns`].
-    pub extra: &'a [f64],
-}
-
 /// Where the loop writes its rows; flushed at every stop.
 pub trait RunLog {
     /// Appends one row.
-    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String>;
+    fn push(&mut self, row: &Row<'_>) -> Result<(), String>;
     /// Writes everything buffered.
     fn flush(&mut self) -> Result<(), String>;
 }
@@ -71,17 +52,8 @@ pub struct CsvLog {
 }
 
 impl RunLog for CsvLog {
-    fn push(&mut self, row: &LogRow<'_>) -> Result<(), String> {
-        let row = Row {
-            t: row.t,
-            q: row.q,
-            qd: row.qd,
-            tau: row.tau,
-            tau_nom: row.tau_nom,
-            b: row.b,
-            extra: row.extra,
-        };
-        self.writer.push_row(&row).map_err(|e| e.to_string())
+    fn push(&mut self, row: &Row<'_>) -> Result<(), String> {
+        self.writer.push_row(row).map_err(|e| e.to_string())
     }
 
     fn flush(&mut self) -> Result<(), String> {

@@ -134,7 +134,8 @@ impl RunSummary {
 }
 
 use crate::hardware::log::FIXED_EXTRA;
-pub use crate::hardware::log::{LogRow, RunLog, extra_columns};
+pub use crate::hardware::log::{RunLog, extra_columns};
+pub use crate::record::Row;
 
 /// Sync-read retries allowed for the safe start's reading (torque is still off).
 const START_READ_RETRIES: u32 = 9;
@@ -482,7 +483,7 @@ fn push_row(
     let n = ws.tensions.len();
     let row = if reading.is_some() {
         ws.extra[FIXED_EXTRA..].copy_from_slice(&ws.tensions);
-        LogRow {
+        Row {
             t,
             q: &ws.q,
             qd: &ws.qd,
@@ -493,7 +494,7 @@ fn push_row(
         }
     } else {
         ws.extra[FIXED_EXTRA..FIXED_EXTRA + n].fill(f64::NAN);
-        LogRow {
+        Row {
             t,
             q: &ws.nan_q,
             qd: &ws.nan_q,

@@ -206,18 +206,17 @@ impl ServoIo {
     }
 }
 
-/// Writes `data` at `addr` of `id`, trying up to three times.
-pub fn write_register<P: ServoPort>(
+/// Runs one request/reply transaction up to three times: before each try the input is
+/// discarded, after a failed one the port is drained of late bytes.
+fn with_retries<P: ServoPort>(
     bus: &mut Bus<P>,
-    id: u8,
-    addr: u16,
-    data: &[u8],
+    mut transaction: impl FnMut(&mut Bus<P>) -> Result<(), BusError>,
 ) -> Result<(), BusError> {
     let mut result = Ok(());
     for _ in 0..3 {
         bus.port_mut().discard_input()?;
-        match bus.write(id, addr, data) {
-            Ok(_) => return Ok(()),
+        match transaction(bus) {
+            Ok(()) => return Ok(()),
             Err(error) => {
                 let timeout = bus.timeout();
                 drain(bus.port_mut(), timeout, 4 * timeout)?;
@@ -229,6 +228,16 @@ pub fn write_register<P: ServoPort>(
     result
 }
 
+/// Writes `data` at `addr` of `id`, trying up to three times.
+pub fn write_register<P: ServoPort>(
+    bus: &mut Bus<P>,
+    id: u8,
+    addr: u16,
+    data: &[u8],
+) -> Result<(), BusError> {
+    with_retries(bus, |bus| bus.write(id, addr, data).map(|_| ()))
+}
+
 /// Reads `out.len()` bytes at `addr` of `id`, trying up to three times.
 pub fn read_register<P: ServoPort>(
     bus: &mut Bus<P>,
@@ -236,20 +245,7 @@ pub fn read_register<P: ServoPort>(
     addr: u16,
     out: &mut [u8],
 ) -> Result<(), BusError> {
-    let mut result = Ok(());
-    for _ in 0..3 {
-        bus.port_mut().discard_input()?;
-        match bus.read(id, addr, out) {
-            Ok(_) => return Ok(()),
-            Err(error) => {
-                let timeout = bus.timeout();
-                drain(bus.port_mut(), timeout, 4 * timeout)?;
-                bus.note_retry();
-                result = Err(error);
-            }
-        }
-    }
-    result
+    with_retries(bus, |bus| bus.read(id, addr, out).map(|_| ()))
 }
 
 /// Safe start, part one: every servo answers a ping with the expected model number, has
