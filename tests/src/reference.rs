@@ -633,6 +633,26 @@ pub fn sample_module(rng: &mut SplitMix, module: &Module, theta: f64) -> [f64; 3
     [dx, dy, dl]
 }
 
+/// The diagonals of `K` and `D` written from MODEL.md §4, module by module:
+/// `K_i = diag(κθ/d², κθ/d², κL)`, `D_i = diag(βθ/d², βθ/d², βL)`.
+pub fn stiffness_and_damping(robot: &Robot) -> (Vec<f64>, Vec<f64>) {
+    let (mut stiffness, mut damping) = (Vec::new(), Vec::new());
+    for m in &robot.modules {
+        let d2 = m.tendon_radius * m.tendon_radius;
+        stiffness.extend([
+            m.bending_stiffness / d2,
+            m.bending_stiffness / d2,
+            m.axial_stiffness,
+        ]);
+        damping.extend([
+            m.bending_damping / d2,
+            m.bending_damping / d2,
+            m.axial_damping,
+        ]);
+    }
+    (stiffness, damping)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,7 +8,7 @@ use softcbf::dynamics::{DynamicsWorkspace, forward_dynamics};
 use softcbf::model::Model;
 use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
 use softcbf_tests::alloc::{CountingAlloc, allocations};
-use softcbf_tests::reference::SplitMix;
+use softcbf_tests::reference::{SplitMix, stiffness_and_damping};
 
 #[global_allocator]
 static GLOBAL: CountingAlloc = CountingAlloc;
@@ -114,22 +114,7 @@ fn hold_corrected_rows_predict_the_implicit_euler_step() {
     settings.hold_correction = hold;
     let mut controller = Controller::new(&model, settings).unwrap();
     let [p1, p2] = controller.settings().barrier_gains;
-    let robot = &model.robot;
-    let mut stiffness = Vec::new();
-    let mut damping = Vec::new();
-    for m in &robot.modules {
-        let d2 = m.tendon_radius * m.tendon_radius;
-        stiffness.extend([
-            m.bending_stiffness / d2,
-            m.bending_stiffness / d2,
-            m.axial_stiffness,
-        ]);
-        damping.extend([
-            m.bending_damping / d2,
-            m.bending_damping / d2,
-            m.axial_damping,
-        ]);
-    }
+    let (stiffness, damping) = stiffness_and_damping(&model.robot);
     let mut rng = SplitMix(14);
     let zero = zeros(nq);
     for _ in 0..100 {

@@ -10,6 +10,7 @@ use softcbf_codegen::analytic::SWITCH_POINTS;
 use softcbf_codegen::robot::{Module, Robot};
 use softcbf_tests::reference::{
     self, SplitMix, dynamics, paper_module, paper_robot, sample_module, sample_theta,
+    stiffness_and_damping,
 };
 
 /// Runtime `M` (row-major), `h`, `G` at `(q, q̇)`.
@@ -362,18 +363,10 @@ fn gravity_is_gradient_of_potential() {
 fn stiffness_and_damping_diagonals() {
     let robot = paper_robot(modules(2, 0.0));
     let model = model_of(robot.clone());
-    for (i, m) in robot.modules.iter().enumerate() {
-        let d2 = m.tendon_radius * m.tendon_radius;
-        let k = [
-            m.bending_stiffness / d2,
-            m.bending_stiffness / d2,
-            m.axial_stiffness,
-        ];
-        let d = [
-            m.bending_damping / d2,
-            m.bending_damping / d2,
-            m.axial_damping,
-        ];
+    let (k_all, d_all) = stiffness_and_damping(&robot);
+    for i in 0..robot.modules.len() {
+        let k = &k_all[3 * i..3 * i + 3];
+        let d = &d_all[3 * i..3 * i + 3];
         for c in 0..3 {
             let (ks, ds) = (model.stiffness[3 * i + c], model.damping[3 * i + c]);
             assert!(
@@ -550,21 +543,7 @@ fn check_forward_dynamics<const N: usize>(robot: Robot, seed: u64, trials: usize
     let mut ws = DynamicsWorkspace::new(&model);
     let mut rng = SplitMix(seed);
     // K and D written from MODEL.md §4, not read from the model.
-    let mut k_diag = [0.0; N];
-    let mut d_diag = [0.0; N];
-    for (i, m) in robot.modules.iter().enumerate() {
-        let d2 = m.tendon_radius * m.tendon_radius;
-        k_diag[3 * i..3 * i + 3].copy_from_slice(&[
-            m.bending_stiffness / d2,
-            m.bending_stiffness / d2,
-            m.axial_stiffness,
-        ]);
-        d_diag[3 * i..3 * i + 3].copy_from_slice(&[
-            m.bending_damping / d2,
-            m.bending_damping / d2,
-            m.axial_damping,
-        ]);
-    }
+    let (k_diag, d_diag) = stiffness_and_damping(&robot);
     for trial in 0..trials {
         let (q, qd) = sample_state::<N>(&mut rng, &robot);
         let tau: [f64; N] = std::array::from_fn(|_| rng.uniform(-5.0, 5.0));
