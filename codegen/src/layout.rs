@@ -6,17 +6,17 @@ use crate::robot::{Robot, Structure};
 /// One entry of the parameter vector (module `i`, corner `j`, 0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Param {
-    /// `L0` of module `i` [m].
+    /// `L0` of module `i` \[m\].
     RestLength(usize),
-    /// `d` of module `i` [m].
+    /// `d` of module `i` \[m\].
     TendonRadius(usize),
-    /// `r` of module `i` [m].
+    /// `r` of module `i` \[m\].
     CornerRadius(usize),
     /// `cos φ_j` of corner `j` of module `i`.
     CornerCos(usize, usize),
     /// `sin φ_j` of corner `j` of module `i`.
     CornerSin(usize, usize),
-    /// `ε_j` of corner `j` of module `i` [m].
+    /// `ε_j` of corner `j` of module `i` \[m\].
     Margin(usize, usize),
 }
 

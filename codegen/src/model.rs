@@ -341,7 +341,7 @@ impl SymbolicModel {
         let spec = FunctionSpec {
             name: format_ident!("barriers"),
             doc: vec![
-                " Plate-corner barriers `b_ij = c_ij − ε_ij` [m], module-major, corner-minor."
+                " Plate-corner barriers `b_ij = c_ij − ε_ij` \\[m\\], module-major, corner-minor."
                     .into(),
             ],
             args: quote!(p: &[f64; NP], q: &[f64; NQ], barriers: &mut [f64; NB]),
@@ -372,7 +372,8 @@ impl SymbolicModel {
         let spec = FunctionSpec {
             name: format_ident!("barrier_terms"),
             doc: vec![
-                " Every barrier `b` [m], its gradient row `J = ∂b/∂q` and `J̇q̇ = q̇ᵀ ∇²b q̇`.".into(),
+                " Every barrier `b` \\[m\\], its gradient row `J = ∂b/∂q` and `J̇q̇ = q̇ᵀ ∇²b q̇`."
+                    .into(),
             ],
             args: quote!(
                 p: &[f64; NP],

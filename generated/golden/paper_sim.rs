@@ -411,7 +411,7 @@ pub fn segment_transforms(
         transform[3] = [0.0, 0.0, 0.0, 1.0];
     }
 }
-/// Plate-corner barriers `b_ij = c_ij − ε_ij` [m], module-major, corner-minor.
+/// Plate-corner barriers `b_ij = c_ij − ε_ij` \[m\], module-major, corner-minor.
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 pub fn barriers(p: &[f64; NP], q: &[f64; NQ], barriers: &mut [f64; NB]) {
     let rest_length_0: f64 = p[0];
@@ -599,7 +599,7 @@ pub fn barriers(p: &[f64; NP], q: &[f64; NQ], barriers: &mut [f64; NB]) {
     barriers[10] = t216;
     barriers[11] = t218;
 }
-/// Every barrier `b` [m], its gradient row `J = ∂b/∂q` and `J̇q̇ = q̇ᵀ ∇²b q̇`.
+/// Every barrier `b` \[m\], its gradient row `J = ∂b/∂q` and `J̇q̇ = q̇ᵀ ∇²b q̇`.
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 pub fn barrier_terms(
     p: &[f64; NP],

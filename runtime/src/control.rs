@@ -23,15 +23,15 @@ use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
 /// What the controller is asked to do: gains and whether the safety filter runs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ControllerSettings {
-    /// `K_P`, row-major `nq × nq` [N/m]. Paper: `5·I`.
+    /// `K_P`, row-major `nq × nq` \[N/m\]. Paper: `5·I`.
     pub kp: Vec<f64>,
-    /// `K_D`, row-major `nq × nq` [N·s/m]. Paper: `1·I`.
+    /// `K_D`, row-major `nq × nq` \[N·s/m\]. Paper: `1·I`.
     pub kd: Vec<f64>,
-    /// HOCBF class-K gains `[p1, p2]` [1/s]. Default: the robot file's `[barrier]` gains.
+    /// HOCBF class-K gains `[p1, p2]` \[1/s\]. Default: the robot file's `[barrier]` gains.
     pub barrier_gains: [f64; 2],
     /// Run the safety filter (`false`: plain PD+, `τ = τ_nom`). Default `true`.
     pub filter: bool,
-    /// Hold period `Δ` [s] of the hold correction (module docs); `0` (the default) gives the
+    /// Hold period `Δ` \[s\] of the hold correction (module docs); `0` (the default) gives the
     /// paper's rows `A = J M⁻¹`.
     pub hold_correction: f64,
     /// Constant limits on the command, `A_u τ ≥ b_u`: rows (row-major, `nq` columns) and
@@ -240,17 +240,17 @@ impl Controller {
         self.settings.filter = on;
     }
 
-    /// The command of the last tick [N]: the one to apply.
+    /// The command of the last tick \[N\]: the one to apply.
     pub fn tau(&self) -> &[f64] {
         &self.tau
     }
 
-    /// The nominal PD+ torque of the last tick [N] (NaN after an invalid state).
+    /// The nominal PD+ torque of the last tick \[N\] (NaN after an invalid state).
     pub fn tau_nom(&self) -> &[f64] {
         &self.tau_nom
     }
 
-    /// Barrier values of the last tick [m] (NaN after an invalid state).
+    /// Barrier values of the last tick \[m\] (NaN after an invalid state).
     pub fn barriers(&self) -> &[f64] {
         &self.barriers
     }

@@ -47,7 +47,7 @@ impl<'m> PlantSystem<'m> {
         }
     }
 
-    /// The held generalized force [N], length `nq`.
+    /// The held generalized force \[N\], length `nq`.
     pub fn tau_mut(&mut self) -> &mut [f64] {
         &mut self.tau
     }
@@ -138,7 +138,7 @@ impl<'m> Plant<'m> {
         self.state.len() / 2
     }
 
-    /// Sets the state `(q, q̇)` and the time [s], and restarts the step-size control.
+    /// Sets the state `(q, q̇)` and the time \[s\], and restarts the step-size control.
     pub fn reset(&mut self, q: &[f64], qd: &[f64], time: f64) {
         let nq = self.nq();
         self.state[..nq].copy_from_slice(q);
@@ -157,7 +157,7 @@ impl<'m> Plant<'m> {
         &self.state[self.nq()..]
     }
 
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub fn time(&self) -> f64 {
         self.time
     }
@@ -167,7 +167,7 @@ impl<'m> Plant<'m> {
         self.stats
     }
 
-    /// The held generalized force [N].
+    /// The held generalized force \[N\].
     pub fn tau_mut(&mut self) -> &mut [f64] {
         self.system.tau_mut()
     }

@@ -64,7 +64,7 @@ impl ReferenceSignal {
         &self.spec
     }
 
-    /// `(q̄, q̄̇, q̄̈)` at time `t` [s]. Allocates nothing.
+    /// `(q̄, q̄̇, q̄̈)` at time `t` \[s\]. Allocates nothing.
     pub fn sample(&mut self, t: f64) -> Reference<'_> {
         match &self.spec {
             ReferenceSpec::SetPoint(q) => {

@@ -27,17 +27,17 @@ pub const PAPER_SIM_SCENARIO: &str = include_str!("../../scenarios/paper-sim.tom
 pub struct Scenario {
     /// Name (defaults to the file stem).
     pub name: String,
-    /// Initial `q` [m].
+    /// Initial `q` \[m\].
     pub initial_q: Vec<f64>,
-    /// Initial `q̇` [m/s].
+    /// Initial `q̇` \[m/s\].
     pub initial_qd: Vec<f64>,
     /// What the nominal controller tracks.
     pub reference: ReferenceSpec,
     /// Gains, barrier gains, filter and QP settings.
     pub controller: ControllerSettings,
-    /// Control period [s].
+    /// Control period \[s\].
     pub control_period: f64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub duration: f64,
     /// Also run plain PD+ for comparison.
     pub compare: bool,
@@ -120,11 +120,11 @@ struct RawIntegrator {
     max_steps: Option<Spanned<i64>>,
 }
 
-/// Default control period [s] (the paper's simulation ticks at 1 kHz).
+/// Default control period \[s\] (the paper's simulation ticks at 1 kHz).
 pub const DEFAULT_CONTROL_PERIOD: f64 = 1e-3;
-/// Default duration [s].
+/// Default duration \[s\].
 pub const DEFAULT_DURATION: f64 = 10.0;
-/// The paper's gains: `K_P = 5·I` [N/m], `K_D = 1·I` [N·s/m].
+/// The paper's gains: `K_P = 5·I` \[N/m\], `K_D = 1·I` \[N·s/m\].
 pub const PAPER_GAINS: (f64, f64) = (5.0, 1.0);
 /// Most ticks a scenario may ask for (a guard against typos such as `duration = 1e9`).
 pub const MAX_TICKS: f64 = 1e8;

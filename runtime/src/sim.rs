@@ -38,7 +38,7 @@ pub enum SimulationError {
 /// The lowest barrier value seen at a tick.
 #[derive(Clone, Debug, Serialize)]
 pub struct BarrierMinimum {
-    /// `min_k b_k(t)` over the ticks [m].
+    /// `min_k b_k(t)` over the ticks \[m\].
     pub value: f64,
     /// Index of that barrier (module-major, corner-minor, 0-based).
     pub barrier: usize,
@@ -46,7 +46,7 @@ pub struct BarrierMinimum {
     pub module: usize,
     /// Its corner within the module's plate (1-based).
     pub corner: usize,
-    /// When [s].
+    /// When \[s\].
     pub t: f64,
 }
 
@@ -88,19 +88,19 @@ pub struct RunSummary {
     pub scenario: String,
     /// Robot name.
     pub robot: String,
-    /// Simulated time reached [s].
+    /// Simulated time reached \[s\].
     pub duration: f64,
-    /// Control period [s].
+    /// Control period \[s\].
     pub control_period: f64,
     /// Lowest barrier value at a tick, and which barrier.
     pub min_barrier: BarrierMinimum,
-    /// Final `q` [m].
+    /// Final `q` \[m\].
     pub final_q: Vec<f64>,
-    /// Final reference `q̄` [m].
+    /// Final reference `q̄` \[m\].
     pub set_point: Vec<f64>,
-    /// `‖q − q̄‖₂` at the end [m].
+    /// `‖q − q̄‖₂` at the end \[m\].
     pub set_point_error: f64,
-    /// Largest `|τ_i|` applied [N].
+    /// Largest `|τ_i|` applied \[N\].
     pub max_abs_tau: f64,
     /// Controller outcomes.
     pub counts: TickCounts,
@@ -111,7 +111,7 @@ pub struct RunSummary {
     pub integrator_rejected: usize,
     pub integrator_rhs_evals: usize,
     pub integrator_w_factorizations: usize,
-    /// Wall time of the whole run [s], of the control ticks and of the integration.
+    /// Wall time of the whole run \[s\], of the control ticks and of the integration.
     pub wall_time: f64,
     pub control_time: f64,
     pub integration_time: f64,

@@ -94,11 +94,11 @@ impl Transform {
 /// matrix `[[Ī, [h]×], [[h]×ᵀ, m 1]]` with `h = m c` (`c` the centre of mass).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Inertia {
-    /// `m` [kg].
+    /// `m` \[kg\].
     pub mass: f64,
-    /// `h = m c` [kg·m].
+    /// `h = m c` \[kg·m\].
     pub first_moment: Vec3,
-    /// `Ī`: rotational inertia about the origin [kg·m²] (symmetric).
+    /// `Ī`: rotational inertia about the origin \[kg·m²\] (symmetric).
     pub rotational: Mat3,
 }
 
