@@ -39,6 +39,15 @@ fn zeros(n: usize) -> Vec<f64> {
     vec![0.0; n]
 }
 
+/// Regulation toward `set_point`: `q̄̇ = q̄̈ = 0` (`zero` of the same length).
+fn regulation<'a>(set_point: &'a [f64], zero: &'a [f64]) -> Reference<'a> {
+    Reference {
+        q: set_point,
+        qd: zero,
+        qdd: zero,
+    }
+}
+
 /// `A τ − b` of every HOCBF row must equal `b̈ + (p1 + p2) ḃ + p1 p2 b` of the barrier along
 /// the motion that `τ` causes, here measured by differences of the plain barrier values
 /// along `q(t) = q + t q̇ + ½ t² q̈` (no Jacobian or `J̇q̇` of the generated code involved).
@@ -54,11 +63,7 @@ fn hocbf_rows_predict_the_barrier_acceleration() {
     let mut worst = 0.0_f64;
     for _ in 0..300 {
         let (q, qd) = random_state(&mut rng, nq);
-        let reference = Reference {
-            q: &zero,
-            qd: &zero,
-            qdd: &zero,
-        };
+        let reference = regulation(&zero, &zero);
         tick(&model, &mut controller, &q, &qd, reference);
         let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-3.0, 3.0)).collect();
         let mut qdd = zeros(nq);
@@ -119,11 +124,7 @@ fn hold_corrected_rows_predict_the_implicit_euler_step() {
     let zero = zeros(nq);
     for _ in 0..100 {
         let (q, qd) = random_state(&mut rng, nq);
-        let reference = Reference {
-            q: &zero,
-            qd: &zero,
-            qdd: &zero,
-        };
+        let reference = regulation(&zero, &zero);
         tick(&model, &mut controller, &q, &qd, reference);
         let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-3.0, 3.0)).collect();
         let ws = controller.dynamics();
@@ -237,11 +238,7 @@ fn filter_passes_nominal_torque_when_no_row_is_active() {
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
     let set_point = [0.02, 0.0, 0.0, 0.0, 0.01, 0.0];
     let zero = zeros(nq);
-    let reference = Reference {
-        q: &set_point,
-        qd: &zero,
-        qdd: &zero,
-    };
+    let reference = regulation(&set_point, &zero);
     let status = tick(&model, &mut controller, &set_point, &zero, reference);
     assert_eq!(status, TickStatus::Filtered);
     assert_eq!(controller.qp_report().active, 0);
@@ -280,11 +277,7 @@ fn filtered_torque_satisfies_rows_near_contact() {
     let qd = [0.2, 0.0, -0.1, 0.0, -0.2, -0.1];
     let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
     let zero = zeros(nq);
-    let reference = Reference {
-        q: &set_point,
-        qd: &zero,
-        qdd: &zero,
-    };
+    let reference = regulation(&set_point, &zero);
     let status = tick(&model, &mut controller, &q, &qd, reference);
     assert_eq!(status, TickStatus::Filtered);
     assert!(
@@ -314,11 +307,7 @@ fn non_finite_state_gives_the_safe_command() {
     let nq = model.nq();
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
     let zero = zeros(nq);
-    let reference = Reference {
-        q: &zero,
-        qd: &zero,
-        qdd: &zero,
-    };
+    let reference = regulation(&zero, &zero);
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
         let mut q = zeros(nq);
         q[4] = bad;
@@ -350,11 +339,7 @@ fn contradictory_rows_are_relaxed_and_reported() {
     let q = [0.05, 0.01, -0.02, -0.01, 0.04, -0.03];
     let qd = [0.1, 0.0, -0.1, 0.0, 0.1, 0.0];
     let zero = zeros(nq);
-    let reference = Reference {
-        q: &zero,
-        qd: &zero,
-        qdd: &zero,
-    };
+    let reference = regulation(&zero, &zero);
     tick(&model, &mut controller, &q, &qd, reference);
     let (rows, rhs) = controller.constraints();
     let mut a = rows.to_vec();
@@ -379,11 +364,7 @@ fn input_limits_are_solved_with_the_barrier_rows() {
     let qd = [0.2, 0.0, -0.1, 0.0, -0.2, -0.1];
     let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
     let zero = zeros(nq);
-    let reference = Reference {
-        q: &set_point,
-        qd: &zero,
-        qdd: &zero,
-    };
+    let reference = regulation(&set_point, &zero);
     // |τ_i| ≤ limit as rows τ_i ≥ −limit and −τ_i ≥ −limit.
     let boxed = |limit: f64| {
         let mut rows = vec![0.0; 2 * nq * nq];
@@ -452,11 +433,7 @@ fn control_tick_and_plant_step_allocate_nothing() {
     let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
     let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
     let zero = zeros(nq);
-    let reference = Reference {
-        q: &set_point,
-        qd: &zero,
-        qdd: &zero,
-    };
+    let reference = regulation(&set_point, &zero);
     let (mut active, mut before) = (0, 0);
     for k in 0..400 {
         if k == 1 {
