@@ -6,6 +6,11 @@
 //! stiff part of this plant is exactly its linear `K`, `D` (MODEL.md §7), and Coriolis,
 //! gravity and `∂M/∂q` terms, which `J̃` omits, are not stiff (measurements in
 //! [`crate::integrator`]'s module docs). Nothing allocates after [`Plant::new`].
+//!
+//! On the paper's scenario (10 s at 1 kHz, filter on) the default `rtol = 1e-6`,
+//! `atol = 1e-9` take 3.3 steps and 13.2 evaluations of the dynamics per tick, and the
+//! first 3 s stay within 1.4e-7 m of a run at `rtol = 1e-10` (1e-5: 4.0e-7 m with half the
+//! evaluations; 1e-4: 6e-6 m; 1e-3: 6.5e-5 m).
 
 use crate::dynamics::{
     DynamicsError, DynamicsWorkspace, forward_dynamics, mass_matrix, update_joints,
