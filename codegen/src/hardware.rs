@@ -98,10 +98,7 @@ pub mod defaults {
     pub const VELOCITY_UNIT_RPM: f64 = 0.229;
 }
 
-/// Baud rates X-series servos support (Baud Rate register values 0..=7).
-pub const SUPPORTED_BAUDS: [u32; 8] = [
-    9_600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000,
-];
+pub use crate::limits::SUPPORTED_BAUDS;
 
 // ---------------------------------------------------------------------------------------
 // The table as serde reads it.

@@ -24,6 +24,7 @@ pub mod emit;
 pub mod expr;
 pub mod hardware;
 pub mod layout;
+pub mod limits;
 pub mod model;
 pub mod program;
 pub mod robot;

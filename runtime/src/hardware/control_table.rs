@@ -21,6 +21,10 @@ pub const TORQUE_ENABLE: u16 = 64;
 pub const STATUS_RETURN_LEVEL: u16 = 68;
 /// Hardware Error Status (1 byte, read-only).
 pub const HARDWARE_ERROR_STATUS: u16 = 70;
+/// Bus Watchdog (1 byte, signed): 0 off (and clears a watchdog error), 1..=127 the longest
+/// gap between instruction packets in units of 20 ms while torque is on, −1 after it
+/// expired (the servo stopped; goal values are then read-only). Firmware v38 and later.
+pub const BUS_WATCHDOG: u16 = 98;
 /// Goal Current (2 bytes, signed, current units).
 pub const GOAL_CURRENT: u16 = 102;
 /// Present Current (2 bytes, signed).
