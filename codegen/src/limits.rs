@@ -102,12 +102,22 @@ impl Limit {
                 self.describe()
             ));
         }
-        Err(format!("must be {}, got {value}", self.describe()))
+        Err(format!("must be {}, got {}", self.describe(), short(value)))
     }
 
     /// [`Limit::check`] for an integer setting, returned as `i64`.
     pub fn check_integer(&self, value: i64) -> Result<i64, String> {
         self.check(value as f64).map(|_| value)
+    }
+}
+
+/// `x` in the shortest readable form: `1000`, `0.25`, `1e300`, `1e-9`.
+pub fn short(x: f64) -> String {
+    let magnitude = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&magnitude) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }
 
