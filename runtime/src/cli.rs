@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use softcbf_codegen::limits::{self, Limit};
 use softcbf_codegen::robot::{Robot, RobotError};
 
 /// Text of the default robot, compiled into the binary.
@@ -42,4 +43,40 @@ pub fn parse_vector(name: &str, text: &str, expected: usize) -> Result<Vec<f64>,
         ));
     }
     Ok(values)
+}
+
+/// Checks a number given for option `name` against its [`Limit`] (the same rule as the
+/// description files): `--rate: must be ≥ 1 and ≤ 10000 Hz, got -33`.
+pub fn check_number(name: &str, value: f64, limit: &Limit) -> Result<f64, String> {
+    limit
+        .check(value)
+        .map_err(|message| format!("{name}: {message}"))
+}
+
+/// Parses a number given for option `name` and checks it against `limit`.
+pub fn parse_number(name: &str, text: &str, limit: &Limit) -> Result<f64, String> {
+    let value: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{name}: `{text}` is not a number"))?;
+    check_number(name, value, limit)
+}
+
+/// Parses coordinates `q` of `robot` given for option `name`: `3·modules` finite values in
+/// the model's domain (bend, elongation; [`softcbf_codegen::limits`]).
+pub fn parse_coordinates(name: &str, text: &str, robot: &Robot) -> Result<Vec<f64>, String> {
+    let values = parse_vector(name, text, 3 * robot.modules.len())?;
+    match limits::coordinates_problem(robot, &values) {
+        Some(problem) => Err(format!("{name}: {problem}")),
+        None => Ok(values),
+    }
+}
+
+/// Parses velocities `q̇` of `robot` given for option `name` (speeds within the domain).
+pub fn parse_velocities(name: &str, text: &str, robot: &Robot) -> Result<Vec<f64>, String> {
+    let values = parse_vector(name, text, 3 * robot.modules.len())?;
+    match limits::velocities_problem(robot, &values) {
+        Some(problem) => Err(format!("{name}: {problem}")),
+        None => Ok(values),
+    }
 }
