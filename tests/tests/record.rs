@@ -277,7 +277,7 @@ fn streaming_writer_matches_in_memory_writer() {
     assert_eq!(stream.rows(), 300);
     assert_eq!(stream.get_ref(), &in_memory);
 
-    // To a file, dropped without `finish`: the drop flushes.
+    // To a file, dropped without `finish`: every row is there.
     let path = temp_file("stream-dropped.csv");
     {
         let mut stream = CsvWriter::create(&path, record.columns().clone()).unwrap();
@@ -288,15 +288,18 @@ fn streaming_writer_matches_in_memory_writer() {
     assert_eq!(std::fs::read(&path).unwrap(), in_memory);
     assert_same_values(&record, &Record::read_csv(&path).unwrap());
 
-    // `flush` makes the rows so far readable while the writer stays open.
+    // Every row pushed is in the file at once, whole, while the writer stays open (no
+    // flush): a run killed between two rows leaves a complete log.
     let path = temp_file("stream-open.csv");
     let mut stream = CsvWriter::create(&path, record.columns().clone()).unwrap();
-    for row in record.rows().take(10) {
+    for (k, row) in record.rows().take(10).enumerate() {
         stream.push_row(&row).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.ends_with('\n'), "row {k} is not whole in the file");
+        assert_eq!(Record::read_csv(&path).unwrap().len(), k + 1);
     }
-    stream.flush().unwrap();
+    std::mem::forget(stream); // as if the process died here: nothing more is written
     assert_eq!(Record::read_csv(&path).unwrap().len(), 10);
-    stream.finish().unwrap();
 }
 
 /// The error message of parsing `text` (as file `log.csv`).

@@ -12,8 +12,9 @@ use std::path::{Path, PathBuf};
 
 use super::{Columns, GROUPS, Record, RecordError, Row};
 
-/// Buffer of the streaming writer: about 80 rows of the paper robot between writes.
-const STREAM_BUFFER_BYTES: usize = 64 * 1024;
+/// First capacity of the streaming writer's line buffer (a row of the paper robot with the
+/// hardware log's columns is about 800 bytes); it grows once if a row is longer.
+const LINE_CAPACITY: usize = 4096;
 
 /// Writes `x` so that `str::parse::<f64>` gives back the same value (bit-exact except
 /// for NaN payloads). Allocates nothing.
@@ -165,12 +166,14 @@ fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
 /// Streams rows to a CSV file as they come, for a run too long or too fragile to hold in
 /// memory. Same header and number format as [`Record::write_csv`].
 ///
-/// Rows go through a 64 KiB buffer: [`CsvWriter::push_row`] allocates nothing and calls
-/// the operating system only when the buffer fills. The buffer is written out by
-/// [`CsvWriter::flush`], [`CsvWriter::finish`] and on drop (also while unwinding from a
-/// panic); `std::process::exit` skips drops, so flush before it.
+/// Each row is formatted into a reused line buffer and handed to the writer whole, in one
+/// `write_all`: a file on disk holds every row pushed so far, at any moment, and a process
+/// killed between two rows (SIGKILL, a crash) leaves a log whole up to its last row; one
+/// killed inside a write loses at most that row. [`CsvWriter::push_row`] allocates nothing
+/// once the line buffer has grown to a row's length (the first row).
 pub struct CsvWriter<W: Write> {
-    out: BufWriter<W>,
+    out: W,
+    line: Vec<u8>,
     columns: Columns,
     file: PathBuf,
     rows: usize,
@@ -186,11 +189,13 @@ impl CsvWriter<File> {
 
 impl<W: Write> CsvWriter<W> {
     /// Writes the header to `inner`; `file` names it in errors.
-    pub fn new(inner: W, columns: Columns, file: &Path) -> Result<CsvWriter<W>, RecordError> {
-        let mut out = BufWriter::with_capacity(STREAM_BUFFER_BYTES, inner);
-        write_header(&mut out, &columns).map_err(io_error(file))?;
+    pub fn new(mut inner: W, columns: Columns, file: &Path) -> Result<CsvWriter<W>, RecordError> {
+        let mut line = Vec::with_capacity(LINE_CAPACITY);
+        write_header(&mut line, &columns).map_err(io_error(file))?;
+        inner.write_all(&line).map_err(io_error(file))?;
         Ok(CsvWriter {
-            out,
+            out: inner,
+            line,
             columns,
             file: file.to_path_buf(),
             rows: 0,
@@ -200,17 +205,21 @@ impl<W: Write> CsvWriter<W> {
     /// Appends one row; a row of the wrong sizes is refused and nothing is written.
     pub fn push_row(&mut self, row: &Row) -> Result<(), RecordError> {
         self.columns.check(row)?;
-        write_row(&mut self.out, row).map_err(io_error(&self.file))?;
+        self.line.clear();
+        write_row(&mut self.line, row).map_err(io_error(&self.file))?;
+        self.out
+            .write_all(&self.line)
+            .map_err(io_error(&self.file))?;
         self.rows += 1;
         Ok(())
     }
 
-    /// Writes everything buffered to the file (and flushes the file).
+    /// Flushes the writer (a file has nothing buffered here: rows are written as pushed).
     pub fn flush(&mut self) -> Result<(), RecordError> {
         self.out.flush().map_err(io_error(&self.file))
     }
 
-    /// Flushes and closes, reporting any error (drop would ignore it).
+    /// Flushes and closes, reporting any error.
     pub fn finish(mut self) -> Result<(), RecordError> {
         self.flush()
     }
@@ -225,15 +234,8 @@ impl<W: Write> CsvWriter<W> {
         &self.columns
     }
 
-    /// The underlying writer (holding what has been flushed).
+    /// The underlying writer (holding every row pushed).
     pub fn get_ref(&self) -> &W {
-        self.out.get_ref()
-    }
-}
-
-impl<W: Write> Drop for CsvWriter<W> {
-    fn drop(&mut self) {
-        // Errors cannot be reported from drop; `finish` reports them.
-        let _ = self.out.flush();
+        &self.out
     }
 }
