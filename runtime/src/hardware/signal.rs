@@ -1,38 +1,89 @@
-//! Ctrl-C (SIGINT) and SIGTERM as a flag that the control loop and the emulator poll, so
-//! that both stop through their own safe paths instead of dying mid-packet.
+//! Terminating signals (HUP, INT, TERM, QUIT, PIPE) as flags that the control loop and the
+//! emulator poll, so that every way a run is told to end goes through its safe stop.
+//!
+//! The handlers, installed through `signal-hook`, only store into atomics (async-signal
+//! safe). A closed terminal (HUP), Ctrl-C (INT), `kill` (TERM), Ctrl-\ (QUIT) and a closed
+//! output pipe (PIPE) all end a run the same way: zero tension, torque off, the log
+//! closed. SIGKILL cannot be caught; for it the servos' Bus Watchdog stops them.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-static STOP: AtomicBool = AtomicBool::new(false);
+/// The flags set by the handlers.
+struct Flags {
+    stop: Arc<AtomicBool>,
+    signal: Arc<AtomicUsize>,
+}
 
+static FLAGS: OnceLock<Flags> = OnceLock::new();
+
+/// The signals that end a run through the safe stop.
 #[cfg(unix)]
-extern "C" fn on_signal(_: libc::c_int) {
-    STOP.store(true, Ordering::SeqCst);
+pub const TERMINATING: [i32; 5] = [
+    signal_hook::consts::SIGHUP,
+    signal_hook::consts::SIGINT,
+    signal_hook::consts::SIGTERM,
+    signal_hook::consts::SIGQUIT,
+    signal_hook::consts::SIGPIPE,
+];
+
+fn flags() -> &'static Flags {
+    FLAGS.get_or_init(|| {
+        let flags = Flags {
+            stop: Arc::new(AtomicBool::new(false)),
+            signal: Arc::new(AtomicUsize::new(0)),
+        };
+        #[cfg(unix)]
+        for signal in TERMINATING {
+            // A signal that cannot be registered keeps its default action; the others
+            // still work, so this is reported and not fatal.
+            let registered =
+                signal_hook::flag::register(signal, flags.stop.clone()).and_then(|_| {
+                    signal_hook::flag::register_usize(signal, flags.signal.clone(), signal as usize)
+                });
+            if let Err(error) = registered {
+                eprintln!("warning: cannot handle {}: {error}", name(signal as usize));
+            }
+        }
+        flags
+    })
 }
 
 /// Installs the handlers (idempotent) and returns the flag they set.
 pub fn stop_flag() -> &'static AtomicBool {
-    #[cfg(unix)]
-    {
-        static INSTALLED: std::sync::Once = std::sync::Once::new();
-        INSTALLED.call_once(|| {
-            for signal in [libc::SIGINT, libc::SIGTERM] {
-                let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-                // SAFETY: `on_signal` has the `void (*)(int)` signature `signal` expects and
-                // only performs an atomic store, which is async-signal-safe; it touches no
-                // lock, allocation or I/O. Replacing the default handler of SIGINT/SIGTERM
-                // affects no Rust invariant. The return value (the previous handler or
-                // SIG_ERR) needs no action: on failure the default handler stays in place.
-                unsafe {
-                    libc::signal(signal, handler);
-                }
-            }
-        });
-    }
-    &STOP
+    &flags().stop
 }
 
 /// Whether a stop was requested.
 pub fn stop_requested() -> bool {
-    STOP.load(Ordering::SeqCst)
+    FLAGS.get().is_some_and(|f| f.stop.load(Ordering::SeqCst))
+}
+
+/// The last terminating signal received, if any (its number).
+pub fn received() -> Option<usize> {
+    FLAGS
+        .get()
+        .map(|f| f.signal.load(Ordering::SeqCst))
+        .filter(|&s| s != 0)
+}
+
+/// The conventional name of signal `number`, with what usually sends it.
+pub fn name(number: usize) -> &'static str {
+    #[cfg(unix)]
+    {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGPIPE, SIGQUIT, SIGTERM};
+        let names = [
+            (SIGHUP, "SIGHUP (terminal closed)"),
+            (SIGINT, "SIGINT (Ctrl-C)"),
+            (SIGQUIT, "SIGQUIT (Ctrl-\\)"),
+            (SIGPIPE, "SIGPIPE (output closed)"),
+            (SIGTERM, "SIGTERM"),
+        ];
+        if let Some((_, name)) = names.iter().find(|(s, _)| *s as usize == number) {
+            return name;
+        }
+    }
+    let _ = number;
+    "a terminating signal"
 }
