@@ -172,6 +172,10 @@ pub enum InvalidState {
     MassMatrix,
     /// The model produced a non-finite barrier, torque or row.
     NonFiniteModel,
+    /// `q` or `q̇` lies outside the model's domain (a bend of more than two turns, an
+    /// elongation beyond ten rest lengths, a speed above 100 m/s:
+    /// `softcbf_codegen::limits`), where the model describes no robot.
+    OutOfDomain,
 }
 
 /// Preallocated workspace of the controller for one model; [`tick`] writes into it.
@@ -240,6 +244,28 @@ impl Controller {
         self.settings.filter = on;
     }
 
+    /// Changes the HOCBF class-K gains `[p1, p2]` \[1/s\] (e.g. scaled to a loop's achieved
+    /// period). Gains that are not finite and > 0 are refused (`false`) and the previous
+    /// ones kept.
+    pub fn set_barrier_gains(&mut self, gains: [f64; 2]) -> bool {
+        let valid = gains.iter().all(|p| p.is_finite() && *p > 0.0);
+        if valid {
+            self.settings.barrier_gains = gains;
+        }
+        valid
+    }
+
+    /// Changes the hold period `Δ` \[s\] of the hold correction (`0`: the paper's rows), for
+    /// a loop whose real period differs from its nominal one. A value that is not finite
+    /// and ≥ 0 is refused (`false`) and the previous one kept.
+    pub fn set_hold_correction(&mut self, hold: f64) -> bool {
+        let valid = hold.is_finite() && hold >= 0.0;
+        if valid {
+            self.settings.hold_correction = hold;
+        }
+        valid
+    }
+
     /// The command of the last tick \[N\]: the one to apply.
     pub fn tau(&self) -> &[f64] {
         &self.tau
@@ -297,7 +323,8 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// `τ_nom = M q̄̈ + h + G + K q̄ + D q̄̇ + K_P (q̄ − q) + K_D (q̄̇ − q̇)` (MODEL.md §5) and,
 /// with the filter on, the HOCBF rows and the QP. The command lands in
 /// [`Controller::tau`]; it is always finite (zero, the unactuated robot, when no computed
-/// command can be trusted). Allocates nothing.
+/// command can be trusted, or when the state lies outside the model's domain). Allocates
+/// nothing.
 pub fn tick(
     model: &Model,
     controller: &mut Controller,
@@ -318,6 +345,9 @@ pub fn tick(
         || !(all_finite(reference.q) && all_finite(reference.qd) && all_finite(reference.qdd))
     {
         return controller.fallback(InvalidState::NonFinite);
+    }
+    if softcbf_codegen::limits::state_problem(&model.robot, q, qd).is_some() {
+        return controller.fallback(InvalidState::OutOfDomain);
     }
 
     let ws = &mut controller.dynamics;

@@ -8,6 +8,7 @@
 pub mod cli;
 pub mod control;
 pub mod dynamics;
+pub mod exit;
 pub mod hardware;
 pub mod inspect;
 pub mod integrator;

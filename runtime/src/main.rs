@@ -6,12 +6,15 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use softcbf::cli::{load_robot, parse_vector};
+use softcbf::cli::{check_number, load_robot, parse_coordinates, parse_velocities};
+use softcbf::exit;
+use softcbf::hardware::cli::output_directory;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
-use softcbf::output::{Progress, one_line, write_outputs};
+use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::simulate;
+use softcbf_codegen::limits;
 
 #[derive(Parser)]
 #[command(
@@ -31,7 +34,7 @@ enum Command {
         /// Robot file (default: the embedded paper simulation robot).
         #[arg(long)]
         robot: Option<PathBuf>,
-        /// Generalized coordinates `Δx,Δy,δL,…` [m] (default: all zero).
+        /// Generalized coordinates `Δx,Δy,δL,…` (m) (default: all zero).
         #[arg(long, allow_hyphen_values = true)]
         q: Option<String>,
         /// Generalized velocities [m/s] (default: all zero).
@@ -56,6 +59,9 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
+        #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
+        barrier_threshold: f64,
     },
     /// Emulate the robot's servos on a pseudo-terminal (prints the port to connect to).
     Emulate(softcbf::hardware::cli::EmulateArgs),
@@ -63,33 +69,64 @@ enum Command {
     Run(softcbf::hardware::cli::RunArgs),
 }
 
-fn run(cli: Cli) -> Result<(), String> {
+fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
     match cli.command {
         Command::Model { robot, q, qd } => {
             let robot = load_robot(robot.as_deref()).map_err(|e| e.to_string())?;
             let model = Model::new(robot).map_err(|e| e.to_string())?;
             let nq = model.nq();
             let q = match q {
-                Some(text) => parse_vector("--q", &text, nq)?,
+                Some(text) => parse_coordinates("--q", &text, &model.robot)?,
                 None => vec![0.0; nq],
             };
             let qd = match qd {
-                Some(text) => parse_vector("--qd", &text, nq)?,
+                Some(text) => parse_velocities("--qd", &text, &model.robot)?,
                 None => vec![0.0; nq],
             };
             let report = model_report(&model, &q, &qd);
-            say(&serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
-            Ok(())
+            console.say(&serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
+            let mut code = exit::OK;
+            let bad = non_finite(&report);
+            if bad > 0 {
+                eprintln!(
+                    "error: {bad} values of the model are not finite at this state (null in \
+                     the JSON)"
+                );
+                code = exit::UNSAFE;
+            }
+            if let Some(error) = console.error() {
+                return Err(error.to_string());
+            }
+            Ok(code)
         }
-        Command::Emulate(args) => softcbf::hardware::cli::emulate(args),
-        Command::Run(args) => softcbf::hardware::cli::run(args),
+        Command::Emulate(args) => softcbf::hardware::cli::emulate(args, console),
+        Command::Run(args) => softcbf::hardware::cli::run(args, console),
         Command::Simulate {
             scenario,
             robot,
             no_filter,
             compare,
             out,
-        } => run_simulation(scenario, robot, no_filter, compare, &out),
+            barrier_threshold,
+        } => run_simulation(
+            scenario,
+            robot,
+            no_filter,
+            compare,
+            &out,
+            barrier_threshold,
+            console,
+        ),
+    }
+}
+
+/// Numbers in `value` that JSON could not hold (NaN and infinities become `null`).
+fn non_finite(value: &serde_json::Value) -> usize {
+    match value {
+        serde_json::Value::Null => 1,
+        serde_json::Value::Array(items) => items.iter().map(non_finite).sum(),
+        serde_json::Value::Object(map) => map.values().map(non_finite).sum(),
+        _ => 0,
     }
 }
 
@@ -99,7 +136,14 @@ fn run_simulation(
     no_filter: bool,
     compare: bool,
     out: &std::path::Path,
-) -> Result<(), String> {
+    barrier_threshold: f64,
+    console: &mut Console,
+) -> Result<u8, String> {
+    let threshold = check_number(
+        "--barrier-threshold",
+        barrier_threshold,
+        &limits::BARRIER_THRESHOLD_M,
+    )?;
     let file = match &scenario {
         Some(path) => ScenarioFile::load(path).map_err(|e| e.to_string())?,
         None => ScenarioFile::paper_sim(),
@@ -108,6 +152,7 @@ fn run_simulation(
     let robot = load_robot(robot_path.as_deref()).map_err(|e| e.to_string())?;
     let model = Model::new(robot).map_err(|e| e.to_string())?;
     let scenario = file.resolve(&model).map_err(|e| e.to_string())?;
+    output_directory(out, "--out")?;
     let filter = scenario.controller.filter && !no_filter;
     let compare = filter && (scenario.compare || compare);
 
@@ -125,33 +170,54 @@ fn run_simulation(
     };
     let written = write_outputs(out, &main, comparison.as_ref(), model.generated.corners())
         .map_err(|e| e.to_string())?;
-    say(&one_line(&main.summary));
+    console.say(&one_line(&main.summary));
     if let Some(pd) = &comparison {
-        say(&one_line(&pd.summary));
+        console.say(&one_line(&pd.summary));
     }
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
-    say(&format!("wrote {}", names.join(", ")));
-    match (
-        &main.summary.stopped,
-        comparison.as_ref().and_then(|r| r.summary.stopped.as_ref()),
-    ) {
-        (None, None) => Ok(()),
-        _ => Err("the simulation stopped early (see the summary above)".to_string()),
-    }
-}
+    console.say(&format!("wrote {}", names.join(", ")));
 
-/// Prints a line on standard output; a closed pipe (`softcbf … | head`) is not an error.
-fn say(text: &str) {
-    use std::io::Write;
-    let _ = writeln!(std::io::stdout().lock(), "{text}");
+    let mut code = exit::OK;
+    for run in std::iter::once(&main).chain(&comparison) {
+        let summary = &run.summary;
+        if let Some(why) = &summary.stopped {
+            eprintln!("error: the {} run stopped early: {why}", summary.controller);
+            code = exit::worst(code, exit::ERROR);
+        }
+        let counts = &summary.counts;
+        if counts.invalid_state + counts.failed > 0 {
+            eprintln!(
+                "error: the {} run had {} ticks with an invalid state and {} failed QPs \
+                 (the zero command was applied)",
+                summary.controller, counts.invalid_state, counts.failed
+            );
+            code = exit::worst(code, exit::UNSAFE);
+        }
+    }
+    // Only the filtered run promises to keep the barriers; plain PD+ is the comparison.
+    let lowest = &main.summary.min_barrier;
+    if filter && lowest.value < threshold {
+        eprintln!(
+            "error: unsafe run: lowest barrier {:.3e} m (module {}, corner {}, t = {:.3} s) is \
+             below the threshold {threshold:e} m (--barrier-threshold)",
+            lowest.value, lowest.module, lowest.corner, lowest.t
+        );
+        code = exit::worst(code, exit::UNSAFE);
+    }
+    if let Some(error) = console.error() {
+        eprintln!("error: {error}");
+        code = exit::worst(code, exit::ERROR);
+    }
+    Ok(code)
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
+    let mut console = Console::new();
+    match run(Cli::parse(), &mut console) {
+        Ok(code) => ExitCode::from(code),
         Err(message) => {
             eprintln!("error: {message}");
-            ExitCode::FAILURE
+            ExitCode::from(exit::ERROR)
         }
     }
 }

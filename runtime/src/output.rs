@@ -116,6 +116,44 @@ pub fn one_line(summary: &RunSummary) -> String {
     line
 }
 
+/// Standard output for the command's lines, never a panic: each line is written and
+/// flushed at once; once the reader has gone (a closed pipe, `softcbf … | head`) lines are
+/// dropped quietly, and any other failure (a full disk, `> /dev/full`, a lost terminal) is
+/// kept for [`Console::error`], which decides the exit status. The work goes on either
+/// way: a hardware run still stops safely and writes its log.
+#[derive(Debug, Default)]
+pub struct Console {
+    closed: bool,
+    error: Option<String>,
+}
+
+impl Console {
+    /// A console on standard output.
+    pub fn new() -> Console {
+        Console::default()
+    }
+
+    /// Prints one line.
+    pub fn say(&mut self, text: &str) {
+        if self.closed {
+            return;
+        }
+        let mut out = std::io::stdout().lock();
+        let written = writeln!(out, "{text}").and_then(|()| out.flush());
+        if let Err(error) = written {
+            self.closed = true;
+            if error.kind() != std::io::ErrorKind::BrokenPipe {
+                self.error = Some(format!("cannot write standard output: {error}"));
+            }
+        }
+    }
+
+    /// The first failure to write, other than a reader that went away.
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
+}
+
 /// A progress bar on standard error, drawn only when it is a terminal.
 pub struct Progress {
     label: String,

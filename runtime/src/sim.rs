@@ -36,7 +36,7 @@ pub enum SimulationError {
 }
 
 /// The lowest barrier value seen at a tick.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BarrierMinimum {
     /// `min_k b_k(t)` over the ticks \[m\].
     pub value: f64,

@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, Faults};
-use softcbf::hardware::log::CsvLog;
+use softcbf::hardware::log::{CsvLog, FIXED_EXTRA};
 use softcbf::hardware::mapping::TendonMap;
 use softcbf::hardware::run_loop::{self, Row, RunLog, RunSettings, RunSummary, StopReason};
 use softcbf::model::Model;
@@ -123,12 +123,8 @@ fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> 
     let mut bus = Bus::new(port, Duration::from_secs_f64(timeout));
     let map = TendonMap::new(&robot).unwrap();
     let model = Model::new(robot).unwrap();
-    let settings = RunSettings {
-        rate: 33.0,
-        duration: Some(duration),
-        set_point: hardware.set_point.clone(),
-        filter: true,
-    };
+    let mut settings = RunSettings::new(33.0, hardware.set_point.clone());
+    settings.duration = Some(duration);
     let mut log = MemoryLog::default();
     let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.n_servos()).unwrap());
     let never = AtomicBool::new(false);
@@ -183,7 +179,7 @@ fn paper_set_point_barriers_held_against_the_emulator() {
     assert_eq!(record.len() as u64, s.ticks);
     let header = record.columns().header();
     assert!(header.starts_with("t,q0,q1,q2,q3,q4,q5,qd0,"), "{header}");
-    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read_us,compute_us,write_us,late_us,overrun,clamp_low,clamp_high,f0,f1,f2,f3,f4,f5"), "{header}");
+    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read_us,compute_us,write_us,late_us,overrun,clamp_low,clamp_high,age_us,period_us,hold_us,gain_scale,f0,f1,f2,f3,f4,f5"), "{header}");
     for (k, row) in out.log.rows.iter().enumerate() {
         assert_eq!(record.row(k).unwrap().q, &row.1[..], "row {k}");
     }
@@ -246,7 +242,7 @@ fn assert_commands_from_fresh_readings(out: &Outcome) {
             q, row.1,
             "command {j}: q used ≠ q of the last intact reading"
         );
-        let tensions = &row.3[11..];
+        let tensions = &row.3[FIXED_EXTRA..];
         for (k, (id, current)) in out.bus.goal_writes[w].1.iter().enumerate() {
             assert_eq!(*id, replies[k].id);
             assert_eq!(

@@ -1,20 +1,23 @@
-//! The `softcbf emulate` and `softcbf run` subcommands: options, opening ports, printing
-//! the summary. The work itself is in [`super::emulator`] and [`super::run_loop`].
+//! The `softcbf emulate` and `softcbf run` subcommands: options (each checked by the same
+//! rule as the robot file's field, `softcbf_codegen::limits`), ports, the summary and the
+//! exit status. The work itself is in [`super::emulator`] and [`super::run_loop`].
 
-use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clap::Args;
+use softcbf_codegen::limits;
+use softcbf_codegen::robot::Robot;
 
-use crate::cli::parse_vector;
+use crate::cli::{check_number, parse_coordinates};
+use crate::exit;
 use crate::hardware::emulator::{self, EmulatorSettings, Faults};
 use crate::hardware::mapping::TendonMap;
-use crate::hardware::run_loop::{self, RunSettings, RunSummary};
+use crate::hardware::run_loop::{self, RunSettings, RunSummary, StopReason, Verdict};
 use crate::hardware::signal;
 use crate::model::Model;
+use crate::output::Console;
 use crate::protocol::Bus;
-use softcbf_codegen::robot::Robot;
 
 /// Options of `softcbf emulate`.
 #[derive(Args, Debug)]
@@ -22,29 +25,30 @@ pub struct EmulateArgs {
     /// Robot file with a `[hardware]` table (e.g. robots/hardware-example.toml).
     #[arg(long)]
     pub robot: PathBuf,
-    /// Baud rate used to pace replies [bit/s] (default: the robot file's).
-    #[arg(long)]
-    pub baud: Option<u32>,
-    /// Return Delay Time of the servos (µs) (X-series factory default 500; 0 is usual).
-    #[arg(long, default_value_t = 0)]
-    pub return_delay_us: u64,
+    /// Baud rate used to pace replies (bit/s) (default: the robot file's).
+    #[arg(long, allow_negative_numbers = true)]
+    pub baud: Option<i64>,
+    /// Return Delay Time of the servos (µs), 0 to 508 (X-series factory default 500; 0 is
+    /// usual).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub return_delay_us: f64,
     /// Fraction of status packets not sent (0..1).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub drop: f64,
     /// Fraction of status packets sent with a wrong CRC (0..1).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub corrupt: f64,
-    /// Extra delay of delayed status packets (ms).
-    #[arg(long, default_value_t = 0.0)]
+    /// Extra delay of delayed status packets (ms), 0 to 600000.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub delay_ms: f64,
     /// Fraction of status packets delayed by --delay-ms (0..1).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub delay_fraction: f64,
     /// ID of a servo that stops answering (it still obeys instructions).
-    #[arg(long)]
-    pub silent_servo: Option<u8>,
+    #[arg(long, allow_negative_numbers = true)]
+    pub silent_servo: Option<i64>,
     /// Seconds after the start when --silent-servo falls silent.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub silent_after: f64,
     /// Seed of the fault draws.
     #[arg(long, default_value_t = 1)]
@@ -61,11 +65,15 @@ pub struct RunArgs {
     /// `softcbf emulate` printed).
     #[arg(long)]
     pub port: String,
-    /// Loop rate (Hz).
-    #[arg(long, default_value_t = 33.0)]
+    /// Loop rate (Hz), 1 to 10000.
+    #[arg(long, default_value_t = 33.0, allow_negative_numbers = true)]
     pub rate: f64,
+    /// Lowest rate the loop may fall to (a slow bus) before it stops safely (Hz)
+    /// (default: half of --rate).
+    #[arg(long, allow_negative_numbers = true)]
+    pub min_rate: Option<f64>,
     /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Set point `Δx,Δy,δL,…` (m) (default: the robot file's hardware.set_point).
     #[arg(long, allow_hyphen_values = true)]
@@ -73,19 +81,31 @@ pub struct RunArgs {
     /// Plain PD+ without the safety filter.
     #[arg(long)]
     pub no_filter: bool,
+    /// Compute each command at the state read, not at the state predicted for when the
+    /// command reaches the servos.
+    #[arg(long)]
+    pub no_prediction: bool,
+    /// A run whose lowest barrier falls below this (m) is unsafe (exit status 3).
+    #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
+    pub barrier_threshold: f64,
+    /// The servos' Bus Watchdog (ms): they stop by themselves when no instruction comes for
+    /// this long (a killed host); 0 turns it off (firmware older than v38). Default: three
+    /// periods at --min-rate, at least 100 ms.
+    #[arg(long, allow_negative_numbers = true)]
+    pub bus_watchdog_ms: Option<f64>,
     /// Directory for the log and figures.
     #[arg(long, default_value = "out/run")]
     pub out: PathBuf,
-    /// Baud rate [bit/s] (default: the robot file's).
-    #[arg(long)]
-    pub baud: Option<u32>,
-    /// Ticks in a row without a good reading before the safe stop (default: the robot
-    /// file's hardware.max_consecutive_errors).
-    #[arg(long)]
-    pub max_errors: Option<u32>,
+    /// Baud rate (bit/s) (default: the robot file's).
+    #[arg(long, allow_negative_numbers = true)]
+    pub baud: Option<i64>,
+    /// Ticks in a row without a good reading before the safe stop, 1 to 1000 (default: the
+    /// robot file's hardware.max_consecutive_errors).
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_errors: Option<i64>,
 }
 
-fn load(path: &std::path::Path) -> Result<Robot, String> {
+fn load(path: &Path) -> Result<Robot, String> {
     let robot = Robot::load(path).map_err(|e| e.to_string())?;
     if robot.hardware.is_none() {
         return Err(format!(
@@ -96,162 +116,290 @@ fn load(path: &std::path::Path) -> Result<Robot, String> {
     Ok(robot)
 }
 
-/// `softcbf emulate`: serves until Ctrl-C.
-#[cfg(unix)]
-pub fn emulate(args: EmulateArgs) -> Result<(), String> {
-    use serialport::{SerialPort, TTYPort};
-    let robot = load(&args.robot)?;
-    let hardware = robot.hardware.as_ref().expect("checked by load");
-    let baud = args.baud.unwrap_or(hardware.baud);
-    let settings = EmulatorSettings {
-        baud,
-        return_delay: Duration::from_micros(args.return_delay_us),
-        settle: 3.0,
-        faults: Faults {
-            drop: args.drop,
-            corrupt: args.corrupt,
-            delay: Duration::from_secs_f64(args.delay_ms.max(0.0) / 1000.0),
-            delay_fraction: args.delay_fraction,
-            silent_servo: args.silent_servo,
-            silent_after: Duration::from_secs_f64(args.silent_after.max(0.0)),
-            seed: args.seed,
-        },
+/// The emulator's settings from its options, each checked against its range.
+pub fn emulator_settings(args: &EmulateArgs, robot: &Robot) -> Result<EmulatorSettings, String> {
+    let file_baud = robot
+        .hardware
+        .as_ref()
+        .map_or(limits::SUPPORTED_BAUDS[3], |h| h.baud);
+    let baud = match args.baud {
+        Some(b) => limits::check_baud(b).map_err(|m| format!("--baud: {m}"))?,
+        None => file_baud,
     };
+    let return_delay = check_number(
+        "--return-delay-us",
+        args.return_delay_us,
+        &limits::RETURN_DELAY_US,
+    )?;
+    let delay = check_number("--delay-ms", args.delay_ms, &limits::DELAY_MS)?;
+    let silent_after = check_number("--silent-after", args.silent_after, &limits::SILENT_AFTER_S)?;
+    let silent_servo = match args.silent_servo {
+        Some(id) => {
+            let id = limits::SERVO_ID
+                .check_integer(id)
+                .map_err(|m| format!("--silent-servo: {m}"))?;
+            let ids = robot
+                .hardware
+                .as_ref()
+                .map(|h| h.servo_ids())
+                .unwrap_or_default();
+            if !ids.iter().any(|&s| i64::from(s) == id) {
+                return Err(format!(
+                    "--silent-servo: the robot has no servo {id} (its servos: {ids:?})"
+                ));
+            }
+            Some(id as u8)
+        }
+        None => None,
+    };
+    let mut settings = EmulatorSettings::new(baud);
+    settings.return_delay = Duration::from_secs_f64(return_delay * 1e-6);
+    settings.faults = Faults {
+        drop: check_number("--drop", args.drop, &limits::FRACTION)?,
+        corrupt: check_number("--corrupt", args.corrupt, &limits::FRACTION)?,
+        delay: Duration::from_secs_f64(delay / 1000.0),
+        delay_fraction: check_number("--delay-fraction", args.delay_fraction, &limits::FRACTION)?,
+        silent_servo,
+        silent_after: Duration::from_secs_f64(silent_after),
+        seed: args.seed,
+    };
+    Ok(settings)
+}
+
+/// `softcbf emulate`: serves until a terminating signal; the exit status.
+#[cfg(unix)]
+pub fn emulate(args: EmulateArgs, console: &mut Console) -> Result<u8, String> {
+    use serialport::{SerialPort, TTYPort};
     let stop = signal::stop_flag();
+    let robot = load(&args.robot)?;
+    let settings = emulator_settings(&args, &robot)?;
     let (mut master, slave) =
         TTYPort::pair().map_err(|e| format!("cannot open a pseudo-terminal: {e}"))?;
     master
         .set_timeout(Duration::from_millis(20))
         .map_err(|e| e.to_string())?;
     let path = slave.name().unwrap_or_default();
-    let ids: Vec<String> = hardware
-        .servo_ids()
+    let ids: Vec<String> = robot
+        .hardware
+        .as_ref()
+        .map(|h| h.servo_ids())
+        .unwrap_or_default()
         .iter()
         .map(|id| id.to_string())
         .collect();
+    let baud = settings.baud;
     let mut announce = || {
-        println!(
+        console.say(&format!(
             "softcbf emulate: servos {} of `{}` at {baud} bit/s",
             ids.join(", "),
             robot.name
-        );
-        println!("port: {path}");
-        println!(
+        ));
+        console.say(&format!("port: {path}"));
+        console.say(&format!(
             "connect with: softcbf run --robot {} --port {path}",
             args.robot.display()
-        );
-        println!("Ctrl-C to stop");
-        let _ = std::io::stdout().flush();
+        ));
+        console.say("Ctrl-C to stop");
     };
     let log = emulator::serve(&robot, &settings, &mut master, stop, &mut announce, None)
         .map_err(|e| e.to_string())?;
     drop(slave);
-    println!(
-        "emulator stopped: {} requests; status packets sent {}, delayed {}, dropped {}, corrupted {}, silent {}",
+    let why = signal::received().map_or("stopped".to_string(), |s| {
+        format!("stopped by {}", signal::name(s))
+    });
+    console.say(&format!(
+        "emulator {why}: {} requests; status packets sent {}, delayed {}, dropped {}, corrupted {}, silent {}",
         log.requests, log.fates[0], log.fates[1], log.fates[2], log.fates[3], log.fates[4]
-    );
-    Ok(())
+    ));
+    Ok(console.error().map_or(exit::OK, |_| exit::ERROR))
 }
 
-/// `softcbf run`: the safe controller on the servos; a fault is an error (non-zero exit).
-pub fn run(args: RunArgs) -> Result<(), String> {
-    let robot = load(&args.robot)?;
-    let mut hardware = robot.hardware.clone().expect("checked by load");
-    if let Some(n) = args.max_errors {
-        if n == 0 {
-            return Err("--max-errors must be at least 1".into());
-        }
-        hardware.max_consecutive_errors = n;
+/// `softcbf emulate` needs a Unix pseudo-terminal.
+#[cfg(not(unix))]
+pub fn emulate(_args: EmulateArgs, _console: &mut Console) -> Result<u8, String> {
+    Err("softcbf emulate needs a Unix pseudo-terminal".into())
+}
+
+/// The run's settings from its options and the robot file, each checked against its range.
+/// `robot.hardware` receives the command line's overrides.
+pub fn run_settings(args: &RunArgs, robot: &mut Robot) -> Result<(RunSettings, f64), String> {
+    let Some(hardware) = robot.hardware.as_mut() else {
+        return Err("the robot file has no [hardware] table".into());
+    };
+    if let Some(baud) = args.baud {
+        hardware.baud = limits::check_baud(baud).map_err(|m| format!("--baud: {m}"))?;
     }
-    let mut robot = robot;
-    robot.hardware = Some(hardware.clone());
+    if let Some(n) = args.max_errors {
+        hardware.max_consecutive_errors = limits::MAX_CONSECUTIVE_ERRORS
+            .check_integer(n)
+            .map_err(|m| format!("--max-errors: {m}"))?
+            as u32;
+    }
+    let default_set_point = hardware.set_point.clone();
+    let rate = check_number("--rate", args.rate, &limits::RATE_HZ)?;
+    let set_point = match &args.set_point {
+        Some(text) => parse_coordinates("--set-point", text, robot)?,
+        None => default_set_point,
+    };
+    let mut settings = RunSettings::new(rate, set_point);
+    if let Some(min_rate) = args.min_rate {
+        settings.min_rate = check_number("--min-rate", min_rate, &limits::RATE_HZ)?;
+        settings.bus_watchdog = RunSettings::default_bus_watchdog(settings.min_rate);
+    }
+    if let Some(duration) = args.duration {
+        settings.duration = Some(check_number("--duration", duration, &limits::DURATION_S)?);
+    }
+    if let Some(ms) = args.bus_watchdog_ms {
+        settings.bus_watchdog =
+            check_number("--bus-watchdog-ms", ms, &limits::BUS_WATCHDOG_MS)? / 1000.0;
+    }
+    settings.filter = !args.no_filter;
+    settings.predict = !args.no_prediction;
+    settings.validate(3 * robot.modules.len())?;
+    let threshold = check_number(
+        "--barrier-threshold",
+        args.barrier_threshold,
+        &limits::BARRIER_THRESHOLD_M,
+    )?;
+    Ok((settings, threshold))
+}
+
+/// Creates `dir` for a run's outputs; refuses a path that is a file.
+pub fn output_directory(dir: &Path, option: &str) -> Result<(), String> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!(
+            "{option}: {} is a file, not a directory; give a directory for the outputs",
+            dir.display()
+        ));
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| format!("{option}: cannot create {}: {e}", dir.display()))
+}
+
+/// `softcbf run`: the safe controller on the servos; the exit status says whether the run
+/// was safe ([`crate::exit`]).
+pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
+    // First, so that a signal at any later moment ends in the safe stop.
+    let stop = signal::stop_flag();
+    let mut robot = load(&args.robot)?;
+    let (settings, threshold) = run_settings(&args, &mut robot)?;
+    let hardware = robot.hardware.clone().ok_or("no [hardware] table")?;
     let map = TendonMap::new(&robot).map_err(|e| e.to_string())?;
     let model = Model::new(robot.clone()).map_err(|e| e.to_string())?;
-    let set_point = match &args.set_point {
-        Some(text) => parse_vector("--set-point", text, model.nq())?,
-        None => hardware.set_point.clone(),
-    };
-    if let Some(d) = args.duration
-        && !(d.is_finite() && d > 0.0)
-    {
-        return Err(format!("--duration must be > 0 s, got {d}"));
-    }
-    let settings = RunSettings {
-        rate: args.rate,
-        duration: args.duration,
-        set_point,
-        filter: !args.no_filter,
-    };
-    let baud = args.baud.unwrap_or(hardware.baud);
-    let port = serialport::new(&args.port, baud)
+    output_directory(&args.out, "--out")?;
+    let port = serialport::new(&args.port, hardware.baud)
         .timeout(Duration::from_millis(1))
         .open()
-        .map_err(|e| format!("cannot open {}: {e}", args.port))?;
+        .map_err(|e| format!("--port: cannot open {}: {e}", args.port))?;
     let mut bus = Bus::new(port, Duration::from_secs_f64(hardware.reply_timeout));
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     let mut log = super::log::open(&args.out, &model, map.n_servos())?;
-    let stop = signal::stop_flag();
-    println!(
-        "softcbf run: `{}` on {} at {baud} bit/s, {} Hz, filter {}, set point {:?}",
+    console.say(&format!(
+        "softcbf run: `{}` on {} at {} bit/s, {} Hz (at least {} Hz), filter {}, prediction {}, \
+         bus watchdog {}, set point {:?}",
         robot.name,
         args.port,
+        hardware.baud,
         settings.rate,
+        settings.min_rate,
         if settings.filter { "on" } else { "off" },
+        if settings.predict { "on" } else { "off" },
+        if settings.bus_watchdog > 0.0 {
+            format!("{:.0} ms", settings.bus_watchdog * 1000.0)
+        } else {
+            "off".to_string()
+        },
         settings.set_point
-    );
+    ));
     let summary = run_loop::run(&model, &map, &mut bus, &settings, &mut log, stop)
         .map_err(|e| e.to_string())?;
-    report(&summary);
+    report(&summary, threshold, console);
+    let mut code = match summary.verdict(threshold) {
+        Verdict::Safe => exit::OK,
+        Verdict::Unsafe(why) => {
+            eprintln!("error: unsafe run: {why}");
+            exit::UNSAFE
+        }
+        Verdict::Fault(why) => {
+            eprintln!("error: {why}");
+            exit::FAULT
+        }
+    };
     match super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model) {
         Ok(files) => {
             let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
-            println!("wrote {}", names.join(", "));
+            console.say(&format!("wrote {}", names.join(", ")));
         }
-        Err(e) => eprintln!("warning: the log or figures could not be written: {e}"),
+        Err(e) => {
+            eprintln!("error: the log or figures could not be written: {e}");
+            code = exit::worst(code, exit::ERROR);
+        }
     }
-    if summary.stop.is_fault() {
-        return Err(format!("stopped on a fault: {}", summary.stop));
+    if let Some(error) = console.error() {
+        eprintln!("error: {error}; the log is in {}", args.out.display());
+        code = exit::worst(code, exit::ERROR);
     }
-    Ok(())
+    Ok(code)
 }
 
-fn report(s: &RunSummary) {
+fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
     let b = &s.bus;
-    println!("stopped: {}", s.stop);
-    println!(
-        "{} ticks in {:.2} s ({:.1} Hz): {} commands, {} held (no fresh reading), {} safe fallbacks, {} overruns",
+    let stop = match (&s.stop, signal::received()) {
+        (StopReason::Interrupted, Some(number)) => {
+            format!("interrupted by {}", signal::name(number))
+        }
+        (reason, _) => reason.to_string(),
+    };
+    console.say(&format!("stopped: {stop}"));
+    console.say(&format!(
+        "{} ticks in {:.2} s ({:.1} Hz): {} commands, {} held (no fresh reading), {} safe fallbacks ({} invalid states), {} relaxed, {} overruns",
         s.ticks,
         s.elapsed,
         s.rate(),
         s.commands,
         s.held,
         s.fallbacks,
+        s.invalid,
+        s.relaxed,
         s.overruns
-    );
-    println!(
+    ));
+    console.say(&format!(
+        "timing: longest interval between commands {:.1} ms, oldest reading {:.1} ms when its command arrived, longest software time {:.1} µs{}",
+        s.max_interval * 1e3,
+        s.max_age * 1e3,
+        s.max_compute * 1e6,
+        if s.prediction_failures > 0 {
+            format!(", {} predictions failed", s.prediction_failures)
+        } else {
+            String::new()
+        }
+    ));
+    console.say(&format!(
         "tensions clamped: {} at f_min, {} at f_max",
         s.clamps.low, s.clamps.high
-    );
-    println!(
+    ));
+    console.say(&format!(
         "bus: {} requests, {} replies, {} timeouts, {} CRC errors, {} other corrupt, {} wrong ID, {} retries",
         b.transactions, b.replies, b.timeouts, b.crc_errors, b.decode_errors, b.wrong_id, b.retries
-    );
-    println!(
-        "smallest barrier {:.3e} m; longest software time per tick {:.1} µs",
-        s.min_barrier,
-        s.max_compute * 1e6
-    );
+    ));
+    let m = &s.min_barrier;
+    if m.value.is_finite() {
+        console.say(&format!(
+            "lowest barrier {:.3e} m (module {}, corner {}, t = {:.3} s); threshold {threshold:e} m",
+            m.value, m.module, m.corner, m.t
+        ));
+    } else if s.commands > 0 {
+        console.say("lowest barrier: not finite (a state outside the model)");
+    }
     let off: Vec<String> = s
         .torque_off
         .iter()
         .map(|(id, ok)| format!("{id}:{}", if *ok { "off" } else { "unconfirmed" }))
         .collect();
-    println!("torque: {}", off.join(" "));
-}
-
-/// `softcbf emulate` needs a Unix pseudo-terminal.
-#[cfg(not(unix))]
-pub fn emulate(_args: EmulateArgs) -> Result<(), String> {
-    Err("softcbf emulate needs a Unix pseudo-terminal".into())
+    console.say(&format!("torque: {}", off.join(" ")));
+    let verdict = match s.verdict(threshold) {
+        Verdict::Safe => "safe".to_string(),
+        Verdict::Unsafe(why) => format!("UNSAFE: {why}"),
+        Verdict::Fault(why) => format!("FAULT: {why}"),
+    };
+    console.say(&format!("verdict: {verdict}"));
 }

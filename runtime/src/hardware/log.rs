@@ -20,7 +20,12 @@ pub trait RunLog {
 /// tick's reading), `status` (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP
 /// failed, 4 invalid state), `attempts` (sync reads), `comm_errors` (held ticks in a row),
 /// `read_us`, `compute_us`, `write_us` (bus wait, software, write), `late_us` (start after
-/// schedule), `overrun` (0/1), `clamp_low`, `clamp_high`, then `f0…` (tensions sent \[N\]).
+/// schedule), `overrun` (0/1), `clamp_low`, `clamp_high`, `age_us` (age of the reading when
+/// the command reaches the servos), `period_us` (time since the previous command), `hold_us`
+/// (the hold period the controller assumed), `gain_scale` (the factor of the HOCBF gains,
+/// `nominal period / hold_us`), then `f0…` (tensions sent \[N\]). `q`, `q̇` and
+/// `b` are at the state read; the command was computed at that state predicted `age_us`
+/// ahead.
 pub fn extra_columns(servos: usize) -> Vec<String> {
     let mut names: Vec<String> = [
         "fresh",
@@ -34,6 +39,10 @@ pub fn extra_columns(servos: usize) -> Vec<String> {
         "overrun",
         "clamp_low",
         "clamp_high",
+        "age_us",
+        "period_us",
+        "hold_us",
+        "gain_scale",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -43,7 +52,7 @@ pub fn extra_columns(servos: usize) -> Vec<String> {
 }
 
 /// Number of extra columns before the tensions.
-pub(crate) const FIXED_EXTRA: usize = 11;
+pub const FIXED_EXTRA: usize = 15;
 
 /// The streaming CSV log of a run.
 pub struct CsvLog {

@@ -5,9 +5,9 @@
 //! - [`mapping`]: servo angles → `q`, `q̇`; `τ` → tensions → currents, and back.
 //! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
 //! - [`servo_io`]: safe start, the per-tick sync read/write with retries, safe stop.
-//! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`log`] its rows, CSV and
-//!   figures.
-//! - [`signal`]: Ctrl-C as a flag the loops poll; [`cli`]: the two subcommands' options.
+//! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`run_settings`] what it
+//!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures.
+//! - [`signal`]: terminating signals as flags the loops poll; [`cli`]: the two subcommands' options.
 
 pub mod cli;
 pub mod control_table;
@@ -15,5 +15,7 @@ pub mod emulator;
 pub mod log;
 pub mod mapping;
 pub mod run_loop;
+pub mod run_outcome;
+pub mod run_settings;
 pub mod servo_io;
 pub mod signal;

@@ -1,83 +1,52 @@
-//! `softcbf run`: the fixed-rate loop sync read → mapping → [`control::tick`] → tensions →
+//! `softcbf run`: the loop sync read → mapping → prediction → [`control::tick`] → tensions →
 //! sync write, with the safe start and safe stop of [`servo_io`], a log row every tick and
 //! a summary at the end.
 //!
-//! A tick without a fresh reading of every servo (after the retries of the robot file's
-//! `[hardware]` table) sends nothing: the servos keep the previous command, the tick is
-//! counted as held, and `max_consecutive_errors` held ticks in a row stop the run. Ticks
-//! are scheduled at `start + k / rate`; a tick whose write ends after the next tick's start
-//! is an overrun, and the next tick then starts at once (no burst to catch up).
+//! **Ticks and their timing.** Ticks are scheduled at `start + k / rate`; a tick whose
+//! write ends after the next tick's start is an overrun, and the next tick then starts at
+//! once (no burst to catch up), so a slow bus runs the loop at the rate it can. The loop
+//! measures what it really gets and uses it: a reading was sampled by the servos one wire
+//! time after its request left, and is `age` seconds old when the command computed from it
+//! reaches them; the controller acts on the state predicted `age` seconds ahead by the
+//! model under the command then in force (`predict`). The command is held until the next
+//! one, for the period achieved over the last [`RATE_WINDOW`] commands (at least the
+//! nominal one): the hold correction, if the robot file asks for it, uses that period, and
+//! the HOCBF class-K gains are scaled by `nominal / achieved`, so that their product with
+//! the hold, on which the sampled loop's behaviour depends, stays what it is at the
+//! nominal rate (smaller gains are also a stricter constraint). When the achieved rate
+//! falls below `min_rate`, the loop stops safely and says so.
+//!
+//! **Faults.** A tick without a fresh reading of every servo (after the retries of the
+//! robot file's `[hardware]` table) sends nothing: the servos keep the previous command,
+//! the tick is counted as held, and `max_consecutive_errors` held ticks in a row stop the
+//! run. A servo's alert bit, a port that fails, a pause longer than the servos' Bus
+//! Watchdog (they have stopped by themselves), a terminating signal (through `stop`) and a
+//! panic inside the loop all end in the same safe stop: zero tension, torque off, the
+//! watchdog disarmed, the log closed.
 
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use softcbf_codegen::hardware::VelocitySource;
+use softcbf_codegen::limits;
 
 use crate::control::{
     self, Controller, ControllerError, ControllerSettings, Reference, TickStatus,
 };
-use crate::hardware::emulator::wait_until;
+use crate::hardware::emulator::{wait_until, wire_time};
 use crate::hardware::mapping::{Clamps, TendonMap};
 use crate::hardware::servo_io::{self, ServoIo, ServoPort, StartError};
+use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::Model;
+use crate::plant::Plant;
 use crate::protocol::{Bus, BusCounters};
+use crate::sim::{BarrierMinimum, barrier_owner};
 
-/// What one run does.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RunSettings {
-    /// Loop rate \[Hz\] (the paper: 33).
-    pub rate: f64,
-    /// Stop after this long \[s\]; `None`: until interrupted.
-    pub duration: Option<f64>,
-    /// Set point `q̄` (length `nq`).
-    pub set_point: Vec<f64>,
-    /// Run the safety filter (`false`: plain PD+).
-    pub filter: bool,
-}
+/// Commands over which the achieved rate and the hold period are measured.
+pub const RATE_WINDOW: usize = 8;
 
-/// Why a run ended.
-#[derive(Clone, Debug, PartialEq)]
-pub enum StopReason {
-    /// The duration elapsed.
-    Duration,
-    /// Ctrl-C (or SIGTERM).
-    Interrupted,
-    /// `max_consecutive_errors` ticks in a row without a good reading.
-    CommunicationLost {
-        /// Held ticks in a row.
-        ticks: u32,
-        /// The last bus error.
-        last_error: String,
-    },
-    /// A servo reported a hardware error, the port failed, or the log could not be written.
-    Fault(String),
-}
-
-impl StopReason {
-    /// Whether the run ended on a fault (the command then exits non-zero).
-    pub fn is_fault(&self) -> bool {
-        matches!(
-            self,
-            StopReason::CommunicationLost { .. } | StopReason::Fault(_)
-        )
-    }
-}
-
-impl std::fmt::Display for StopReason {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            StopReason::Duration => write!(f, "duration elapsed"),
-            StopReason::Interrupted => write!(f, "interrupted"),
-            StopReason::CommunicationLost { ticks, last_error } => {
-                write!(
-                    f,
-                    "communication lost: {ticks} ticks in a row without a good reading (last: {last_error})"
-                )
-            }
-            StopReason::Fault(what) => write!(f, "fault: {what}"),
-        }
-    }
-}
+pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RunSettings};
 
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
@@ -88,53 +57,17 @@ pub enum RunError {
     /// The controller could not be built.
     #[error(transparent)]
     Controller(#[from] ControllerError),
+    /// The state predictor could not be built.
+    #[error("state predictor: {0}")]
+    Predictor(#[from] IntegratorError),
     /// The safe start refused to enable torque (torque was then switched off everywhere).
     #[error("safe start failed, torque left off: {0}")]
     Start(#[from] StartError),
 }
 
-/// What happened in a run.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RunSummary {
-    /// Why it ended.
-    pub stop: StopReason,
-    /// Ticks run.
-    pub ticks: u64,
-    /// Ticks that sent a command computed from a fresh reading.
-    pub commands: u64,
-    /// Ticks without a fresh reading (nothing sent).
-    pub held: u64,
-    /// Ticks whose command was the controller's safe fallback.
-    pub fallbacks: u64,
-    /// Ticks that missed their deadline.
-    pub overruns: u64,
-    /// Tensions held at their limits, summed over ticks.
-    pub clamps: Clamps,
-    /// Bus event counts.
-    pub bus: BusCounters,
-    /// Smallest barrier value seen \[m\].
-    pub min_barrier: f64,
-    /// Time from the first tick to the stop \[s\].
-    pub elapsed: f64,
-    /// Largest software time of one tick (mapping, controller, tensions) \[s\].
-    pub max_compute: f64,
-    /// Per servo (bus order): whether its torque-off was confirmed at the stop.
-    pub torque_off: Vec<(u8, bool)>,
-}
-
-impl RunSummary {
-    /// Ticks per second reached.
-    pub fn rate(&self) -> f64 {
-        if self.elapsed > 0.0 {
-            self.ticks as f64 / self.elapsed
-        } else {
-            0.0
-        }
-    }
-}
-
 use crate::hardware::log::FIXED_EXTRA;
 pub use crate::hardware::log::{RunLog, extra_columns};
+pub use crate::hardware::run_outcome::{RunSummary, StopReason, Verdict};
 pub use crate::record::Row;
 
 /// Sync-read retries allowed for the safe start's reading (torque is still off).
@@ -151,25 +84,49 @@ fn status_code(status: TickStatus) -> f64 {
 }
 
 /// The loop's preallocated workspace.
-struct Workspace {
+struct Workspace<'m> {
     angles: Vec<f64>,
     rates: Vec<f64>,
+    /// The state read, and the state the controller acts on (predicted).
     q: Vec<f64>,
     qd: Vec<f64>,
+    q_used: Vec<f64>,
+    qd_used: Vec<f64>,
     q_prev: Vec<f64>,
+    /// Barriers at the state read.
+    barriers: Vec<f64>,
     tensions: Vec<f64>,
+    /// The generalized force of the tensions last sent (in force until the next command).
+    tau_applied: Vec<f64>,
     currents: Vec<i16>,
     zeros: Vec<f64>,
     nan_q: Vec<f64>,
     nan_b: Vec<f64>,
     extra: Vec<f64>,
+    predictor: Plant<'m>,
+    /// Intervals between the last commands \[s\] (a ring).
+    intervals: [f64; RATE_WINDOW],
     /// The first failure of the log, reported at the stop.
     log_error: Option<String>,
 }
 
+/// Timing of one tick, for its log row.
+#[derive(Clone, Copy, Default)]
+struct TickTiming {
+    late: Duration,
+    read: Duration,
+    compute: Duration,
+    write: Duration,
+    overrun: bool,
+    age: f64,
+    interval: f64,
+    hold: f64,
+    gain_scale: f64,
+}
+
 /// Runs the controller on the servos behind `bus` until the duration, `stop`, or a fault.
 /// Safe start first (on failure torque is switched off and the error returned), safe stop
-/// always. `log` gets one row per tick and is flushed at the stop.
+/// always, also after a panic inside the loop. `log` gets one row per tick.
 pub fn run<P: ServoPort>(
     model: &Model,
     map: &TendonMap,
@@ -179,24 +136,15 @@ pub fn run<P: ServoPort>(
     stop: &AtomicBool,
 ) -> Result<RunSummary, RunError> {
     let nq = model.nq();
-    if settings.set_point.len() != nq || settings.set_point.iter().any(|v| !v.is_finite()) {
-        return Err(RunError::Setting(format!(
-            "the set point needs {nq} finite values"
-        )));
-    }
-    if !(settings.rate.is_finite() && settings.rate > 0.0) {
-        return Err(RunError::Setting(format!(
-            "the rate must be > 0 Hz, got {}",
-            settings.rate
-        )));
-    }
+    settings.validate(nq).map_err(RunError::Setting)?;
     let hardware = map.hardware();
     let mut controller_settings = ControllerSettings::paper(model);
     controller_settings.filter = settings.filter;
     // The filter chooses among the commands the cables can realize.
     controller_settings.input_limits = map.tension_limit_rows();
+    let period = 1.0 / settings.rate;
     if hardware.hold_correction {
-        controller_settings.hold_correction = 1.0 / settings.rate;
+        controller_settings.hold_correction = period;
     }
     let mut controller = Controller::new(model, controller_settings)?;
     let n = map.n_servos();
@@ -206,205 +154,85 @@ pub fn run<P: ServoPort>(
         rates: vec![0.0; n],
         q: vec![0.0; nq],
         qd: vec![0.0; nq],
+        q_used: vec![0.0; nq],
+        qd_used: vec![0.0; nq],
         q_prev: vec![0.0; nq],
+        barriers: vec![0.0; model.nb()],
         tensions: vec![0.0; n],
+        tau_applied: vec![0.0; nq],
         currents: vec![0; n],
         zeros: vec![0.0; nq],
         nan_q: vec![f64::NAN; nq],
         nan_b: vec![f64::NAN; model.nb()],
         extra: vec![0.0; FIXED_EXTRA + n],
+        predictor: Plant::new(model, Tolerances::default())?,
+        intervals: [period; RATE_WINDOW],
         log_error: None,
     };
+    let watchdog = settings.bus_watchdog_units() > 0;
+    // Start-up transactions are retried as patiently as the loop's readings.
+    let attempts = ((1 + hardware.retries) * hardware.max_consecutive_errors).max(3);
 
-    // Safe start.
-    let start_result = (|| {
-        servo_io::prepare(bus, io.ids(), hardware.model_number)?;
-        io.read_states(bus, START_READ_RETRIES)
-            .map_err(StartError::State)?;
-        measure(
-            map,
-            &io,
-            &mut ws,
-            VelocitySource::Servo,
-            0.0,
-            hardware.velocity_filter,
-        );
-        if !(ws.q.iter().chain(&ws.qd).all(|v| v.is_finite())) {
-            return Err(StartError::NonFinite {
-                q: ws.q.clone(),
-                qd: ws.qd.clone(),
-            });
-        }
-        // Taut cables (f_min) before torque on.
-        map.tensions_from_tau(&ws.zeros, &mut ws.tensions);
-        for (k, f) in ws.tensions.iter().enumerate() {
-            ws.currents[k] = map.current_from_tension(k, *f);
-        }
-        io.write_currents(bus, &ws.currents)
-            .map_err(StartError::State)?;
-        servo_io::enable_torque(bus, io.ids())
-    })();
-    if let Err(error) = start_result {
-        servo_io::safe_stop(bus, &mut io);
-        return Err(error.into());
-    }
-    ws.qd.fill(0.0);
-    ws.q_prev.copy_from_slice(&ws.q);
-    bus.reset_counters();
-
-    let period = Duration::from_secs_f64(1.0 / settings.rate);
-    let start = Instant::now();
-    let mut next = start;
-    let mut last_reading: Option<Instant> = None;
     let mut summary = RunSummary {
         stop: StopReason::Duration,
         ticks: 0,
         commands: 0,
         held: 0,
         fallbacks: 0,
+        invalid: 0,
+        relaxed: 0,
         overruns: 0,
         clamps: Clamps::default(),
         bus: BusCounters::default(),
-        min_barrier: f64::INFINITY,
+        min_barrier: BarrierMinimum {
+            value: f64::INFINITY,
+            barrier: 0,
+            module: 0,
+            corner: 0,
+            t: 0.0,
+        },
         elapsed: 0.0,
         max_compute: 0.0,
+        max_age: 0.0,
+        max_interval: 0.0,
+        prediction_failures: 0,
         torque_off: Vec::new(),
     };
-    let mut consecutive = 0u32;
-    let alerts_at_start = bus.counters().alerts;
-    let stop_reason = loop {
-        if stop.load(Ordering::Relaxed) {
-            break StopReason::Interrupted;
-        }
-        if settings
-            .duration
-            .is_some_and(|d| next.duration_since(start).as_secs_f64() >= d)
-        {
-            break StopReason::Duration;
-        }
-        wait_until(next);
-        let tick_start = Instant::now();
-        let late = tick_start.duration_since(next);
-        summary.ticks += 1;
-        let read = io.read_states(bus, hardware.retries);
-        let read_done = Instant::now();
-        let t = read_done.duration_since(start).as_secs_f64();
-        let mut write_time = Duration::ZERO;
-        let mut compute_time = Duration::ZERO;
-        let mut clamps = Clamps::default();
-        let fresh;
-        let status;
-        match read {
-            Ok(()) => {
-                consecutive = 0;
-                let dt = last_reading.map_or(0.0, |l| read_done.duration_since(l).as_secs_f64());
-                last_reading = Some(read_done);
-                measure(
-                    map,
-                    &io,
-                    &mut ws,
-                    hardware.velocity_source,
-                    dt,
-                    hardware.velocity_filter,
-                );
-                let tick_status = control::tick(
-                    model,
-                    &mut controller,
-                    &ws.q,
-                    &ws.qd,
-                    Reference {
-                        q: &settings.set_point,
-                        qd: &ws.zeros,
-                        qdd: &ws.zeros,
-                    },
-                );
-                clamps = map.tensions_from_tau(controller.tau(), &mut ws.tensions);
-                for (k, f) in ws.tensions.iter().enumerate() {
-                    ws.currents[k] = map.current_from_tension(k, *f);
-                }
-                let computed = Instant::now();
-                compute_time = computed.duration_since(read_done);
-                let written = io.write_currents(bus, &ws.currents);
-                write_time = computed.elapsed();
-                if let Err(error) = written {
-                    break StopReason::Fault(format!("cannot write the goal currents: {error}"));
-                }
-                summary.commands += 1;
-                if tick_status.is_fallback() {
-                    summary.fallbacks += 1;
-                }
-                summary.clamps.add(clamps);
-                for b in controller.barriers() {
-                    summary.min_barrier = summary.min_barrier.min(*b);
-                }
-                summary.max_compute = summary.max_compute.max(compute_time.as_secs_f64());
-                fresh = 1.0;
-                status = status_code(tick_status);
-            }
-            Err(error) => {
-                consecutive += 1;
-                summary.held += 1;
-                fresh = 0.0;
-                status = -1.0;
-                if consecutive >= hardware.max_consecutive_errors {
-                    push_row(
-                        log,
-                        &mut ws,
-                        None,
-                        t,
-                        &controller,
-                        [fresh, status],
-                        &io,
-                        consecutive,
-                        late,
-                        read_done - tick_start,
-                        compute_time,
-                        write_time,
-                        false,
-                        clamps,
-                    );
-                    break StopReason::CommunicationLost {
-                        ticks: consecutive,
-                        last_error: error.to_string(),
-                    };
-                }
-            }
-        }
-        let end = Instant::now();
-        let overrun = end > next + period;
-        if overrun {
-            summary.overruns += 1;
-        }
-        let reading = (fresh == 1.0).then_some(());
-        push_row(
-            log,
+    let start = Instant::now();
+    let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<StopReason, StartError> {
+        safe_start(model, map, bus, &mut io, &mut ws, settings, attempts)?;
+        Ok(control_loop(
+            model,
+            map,
+            bus,
+            &mut io,
             &mut ws,
-            reading,
-            t,
-            &controller,
-            [fresh, status],
-            &io,
-            consecutive,
-            late,
-            read_done - tick_start,
-            compute_time,
-            write_time,
-            overrun,
-            clamps,
-        );
-        if bus.counters().alerts > alerts_at_start {
-            break StopReason::Fault(
-                "a servo reports a hardware error (alert bit); read its Hardware Error Status"
-                    .into(),
-            );
+            &mut controller,
+            settings,
+            log,
+            stop,
+            &mut summary,
+        ))
+    }));
+    let stop_reason = match outcome {
+        Ok(Ok(reason)) => reason,
+        Ok(Err(error)) => {
+            servo_io::safe_stop(bus, &mut io, watchdog);
+            return Err(error.into());
         }
-        next += period;
-        if next < end {
-            next = end;
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown".into());
+            StopReason::Fault(format!(
+                "internal error in the control loop (a bug, please report it): {what}"
+            ))
         }
     };
     summary.elapsed = start.elapsed().as_secs_f64();
-    let confirmed = servo_io::safe_stop(bus, &mut io);
+    let confirmed = servo_io::safe_stop(bus, &mut io, watchdog);
     summary.torque_off = io.ids().iter().copied().zip(confirmed).collect();
     summary.bus = bus.counters();
     let log_error = log.flush().err().or(ws.log_error.take());
@@ -417,12 +245,312 @@ pub fn run<P: ServoPort>(
     Ok(summary)
 }
 
+/// The safe start: servos checked and prepared, a finite state read, cables taut (`f_min`),
+/// the Bus Watchdog armed, torque on.
+fn safe_start<P: ServoPort>(
+    model: &Model,
+    map: &TendonMap,
+    bus: &mut Bus<P>,
+    io: &mut ServoIo,
+    ws: &mut Workspace<'_>,
+    settings: &RunSettings,
+    attempts: u32,
+) -> Result<(), StartError> {
+    let hardware = map.hardware();
+    let units = settings.bus_watchdog_units();
+    servo_io::prepare(bus, io.ids(), hardware.model_number, units > 0, attempts)?;
+    io.read_states(bus, START_READ_RETRIES.max(attempts))
+        .map_err(StartError::State)?;
+    let read_done = Instant::now();
+    measure(map, io, ws, VelocitySource::Servo, 0.0, 0.0);
+    if limits::state_problem(&model.robot, &ws.q, &ws.qd).is_some() {
+        return Err(StartError::NonFinite {
+            q: ws.q.clone(),
+            qd: ws.qd.clone(),
+        });
+    }
+    // Taut cables (f_min) before torque on.
+    map.tensions_from_tau(&ws.zeros, &mut ws.tensions);
+    for (k, f) in ws.tensions.iter().enumerate() {
+        ws.currents[k] = map.current_from_tension(k, *f);
+    }
+    map.tau_from_tensions(&ws.tensions, &mut ws.tau_applied);
+    io.write_currents(bus, &ws.currents)
+        .map_err(StartError::State)?;
+    servo_io::enable_torque(bus, io.ids(), units, attempts)?;
+    ws.qd.fill(0.0);
+    ws.q_prev.copy_from_slice(&ws.q);
+    bus.reset_counters();
+    // The first commands are held as long as a read and a write take on this bus.
+    if let Some((sent, _)) = io.reading_sent() {
+        let cycle = read_done.duration_since(sent).as_secs_f64()
+            + wire_time(14 + 3 * map.n_servos(), hardware.baud).as_secs_f64();
+        ws.intervals = [cycle.max(1.0 / settings.rate); RATE_WINDOW];
+    }
+    Ok(())
+}
+
+/// The ticks, until a stop reason.
+#[allow(clippy::too_many_arguments)]
+fn control_loop<P: ServoPort>(
+    model: &Model,
+    map: &TendonMap,
+    bus: &mut Bus<P>,
+    io: &mut ServoIo,
+    ws: &mut Workspace<'_>,
+    controller: &mut Controller,
+    settings: &RunSettings,
+    log: &mut dyn RunLog,
+    stop: &AtomicBool,
+    summary: &mut RunSummary,
+) -> StopReason {
+    let hardware = map.hardware();
+    let baud = hardware.baud;
+    let period = Duration::from_secs_f64(1.0 / settings.rate);
+    let nominal = period.as_secs_f64();
+    let barrier_gains = controller.settings().barrier_gains;
+    let write_wire = wire_time(14 + 3 * map.n_servos(), baud).as_secs_f64();
+    let corners = model.generated.corners();
+    let start = Instant::now();
+    let mut next = start;
+    let mut last_reading: Option<Instant> = None;
+    let mut last_command: Option<Instant> = None;
+    let mut commands_timed = 0usize;
+    let mut compute_estimate = 0.0_f64;
+    let mut consecutive = 0u32;
+    let alerts_at_start = bus.counters().alerts;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return StopReason::Interrupted;
+        }
+        if settings
+            .duration
+            .is_some_and(|d| next.duration_since(start).as_secs_f64() >= d)
+        {
+            return StopReason::Duration;
+        }
+        wait_until(next);
+        let tick_start = Instant::now();
+        if settings.bus_watchdog > 0.0
+            && let Some((sent, _)) = bus.last_sent()
+        {
+            let gap = tick_start.duration_since(sent).as_secs_f64();
+            if gap > settings.bus_watchdog {
+                return StopReason::WatchdogExpired {
+                    gap,
+                    watchdog: settings.bus_watchdog,
+                };
+            }
+        }
+        let mut timing = TickTiming {
+            late: tick_start.duration_since(next),
+            ..TickTiming::default()
+        };
+        summary.ticks += 1;
+        let read = io.read_states(bus, hardware.retries);
+        let read_done = Instant::now();
+        timing.read = read_done - tick_start;
+        let t = read_done.duration_since(start).as_secs_f64();
+        let mut clamps = Clamps::default();
+        let (fresh, status) = match read {
+            Ok(()) => {
+                consecutive = 0;
+                let dt = last_reading.map_or(0.0, |l| read_done.duration_since(l).as_secs_f64());
+                last_reading = Some(read_done);
+                measure(
+                    map,
+                    io,
+                    ws,
+                    hardware.velocity_source,
+                    dt,
+                    hardware.velocity_filter,
+                );
+                // The servos sampled one wire time after the request left; the command
+                // reaches them after the computation and its own wire time.
+                let sampled = io
+                    .reading_sent()
+                    .map_or(read_done, |(sent, len)| sent + wire_time(len, baud));
+                let age = read_done.saturating_duration_since(sampled).as_secs_f64()
+                    + compute_estimate
+                    + write_wire;
+                timing.age = age;
+                // The period achieved lately (never less than the nominal one) is the hold
+                // of this command; the class-K gains keep their product with it, p·Δ, at
+                // what the file's gains give at the nominal period (smaller gains: a
+                // stricter constraint, and the sampled loop as stable as at full rate).
+                let achieved = ws.intervals.iter().sum::<f64>() / RATE_WINDOW as f64;
+                let hold = achieved.max(nominal);
+                timing.hold = hold;
+                timing.gain_scale = nominal / hold;
+                controller.set_barrier_gains([
+                    barrier_gains[0] * timing.gain_scale,
+                    barrier_gains[1] * timing.gain_scale,
+                ]);
+                if map.hardware().hold_correction {
+                    controller.set_hold_correction(hold);
+                }
+                ws.q_used.copy_from_slice(&ws.q);
+                ws.qd_used.copy_from_slice(&ws.qd);
+                if settings.predict && !predict(model, ws, age) {
+                    summary.prediction_failures += 1;
+                }
+                let tick_status = control::tick(
+                    model,
+                    controller,
+                    &ws.q_used,
+                    &ws.qd_used,
+                    Reference {
+                        q: &settings.set_point,
+                        qd: &ws.zeros,
+                        qdd: &ws.zeros,
+                    },
+                );
+                clamps = map.tensions_from_tau(controller.tau(), &mut ws.tensions);
+                for (k, f) in ws.tensions.iter().enumerate() {
+                    ws.currents[k] = map.current_from_tension(k, *f);
+                }
+                let computed = Instant::now();
+                timing.compute = computed.duration_since(read_done);
+                compute_estimate = timing.compute.as_secs_f64();
+                let written = io.write_currents(bus, &ws.currents);
+                let write_end = Instant::now();
+                timing.write = write_end.duration_since(computed);
+                if let Err(error) = written {
+                    return StopReason::Fault(format!("cannot write the goal currents: {error}"));
+                }
+                map.tau_from_tensions(&ws.tensions, &mut ws.tau_applied);
+                if let Some(previous) = last_command {
+                    let interval = computed.duration_since(previous).as_secs_f64();
+                    timing.interval = interval;
+                    ws.intervals[commands_timed % RATE_WINDOW] = interval;
+                    commands_timed += 1;
+                    summary.max_interval = summary.max_interval.max(interval);
+                }
+                last_command = Some(computed);
+                summary.commands += 1;
+                summary.max_age = summary.max_age.max(age);
+                match tick_status {
+                    TickStatus::QpFailed => summary.fallbacks += 1,
+                    TickStatus::InvalidState(_) => {
+                        summary.fallbacks += 1;
+                        summary.invalid += 1;
+                    }
+                    TickStatus::Relaxed => summary.relaxed += 1,
+                    TickStatus::Filtered | TickStatus::Unfiltered => {}
+                }
+                summary.clamps.add(clamps);
+                // The barriers at the state read: what the robot really did.
+                model
+                    .generated
+                    .barriers(&model.params, &ws.q, &mut ws.barriers);
+                for (j, &b) in ws.barriers.iter().enumerate() {
+                    // A NaN barrier (a state outside the model) counts as the lowest.
+                    if b < summary.min_barrier.value || b.is_nan() {
+                        let (module, corner) = barrier_owner(corners, j);
+                        summary.min_barrier = BarrierMinimum {
+                            value: if b.is_nan() { f64::NEG_INFINITY } else { b },
+                            barrier: j,
+                            module,
+                            corner,
+                            t,
+                        };
+                    }
+                }
+                summary.max_compute = summary.max_compute.max(timing.compute.as_secs_f64());
+                (true, status_code(tick_status))
+            }
+            Err(error) => {
+                consecutive += 1;
+                summary.held += 1;
+                if consecutive >= hardware.max_consecutive_errors {
+                    push_row(
+                        log,
+                        ws,
+                        false,
+                        t,
+                        controller,
+                        -1.0,
+                        io,
+                        consecutive,
+                        timing,
+                        clamps,
+                    );
+                    return StopReason::CommunicationLost {
+                        ticks: consecutive,
+                        last_error: error.to_string(),
+                    };
+                }
+                (false, -1.0)
+            }
+        };
+        let end = Instant::now();
+        timing.overrun = end > next + period;
+        if timing.overrun {
+            summary.overruns += 1;
+        }
+        push_row(
+            log,
+            ws,
+            fresh,
+            t,
+            controller,
+            status,
+            io,
+            consecutive,
+            timing,
+            clamps,
+        );
+        if bus.counters().alerts > alerts_at_start {
+            return StopReason::Fault(
+                "a servo reports a hardware error (alert bit); read its Hardware Error Status"
+                    .into(),
+            );
+        }
+        if commands_timed >= RATE_WINDOW {
+            let mean = ws.intervals.iter().sum::<f64>() / RATE_WINDOW as f64;
+            if mean * settings.min_rate > 1.0 {
+                return StopReason::RateTooLow {
+                    achieved: 1.0 / mean,
+                    min: settings.min_rate,
+                };
+            }
+        }
+        next += period;
+        if next < end {
+            next = end;
+        }
+    }
+}
+
+/// Advances the state read (`ws.q`, `ws.qd`) by `age` seconds under the force in effect,
+/// into `ws.q_used`, `ws.qd_used`. On failure (the model cannot integrate from this state)
+/// these keep the state read and `false` is returned.
+fn predict(model: &Model, ws: &mut Workspace<'_>, age: f64) -> bool {
+    if !age.is_finite() {
+        return false;
+    }
+    // Nothing to predict, or a state the controller will refuse anyway.
+    if age <= 0.0 || limits::state_problem(&model.robot, &ws.q, &ws.qd).is_some() {
+        return true;
+    }
+    ws.predictor.reset(&ws.q, &ws.qd, 0.0);
+    ws.predictor.tau_mut().copy_from_slice(&ws.tau_applied);
+    match ws.predictor.advance(age) {
+        Ok(()) => {
+            ws.q_used.copy_from_slice(ws.predictor.q());
+            ws.qd_used.copy_from_slice(ws.predictor.qd());
+            true
+        }
+        Err(_) => false,
+    }
+}
+
 /// `q` from the servo angles, and `q̇` from the servos or from filtered differences over
 /// `dt` seconds (`dt = 0`: no previous reading, `q̇` unchanged).
 fn measure(
     map: &TendonMap,
     io: &ServoIo,
-    ws: &mut Workspace,
+    ws: &mut Workspace<'_>,
     source: VelocitySource,
     dt: f64,
     filter: f64,
@@ -451,37 +579,37 @@ fn measure(
 #[allow(clippy::too_many_arguments)]
 fn push_row(
     log: &mut dyn RunLog,
-    ws: &mut Workspace,
-    reading: Option<()>,
+    ws: &mut Workspace<'_>,
+    fresh: bool,
     t: f64,
     controller: &Controller,
-    [fresh, status]: [f64; 2],
+    status: f64,
     io: &ServoIo,
     consecutive: u32,
-    late: Duration,
-    read: Duration,
-    compute: Duration,
-    write: Duration,
-    overrun: bool,
+    timing: TickTiming,
     clamps: Clamps,
 ) {
     let us = |d: Duration| d.as_secs_f64() * 1e6;
     let fixed = [
-        fresh,
+        f64::from(u8::from(fresh)),
         status,
         f64::from(io.attempts()),
         f64::from(consecutive),
-        us(read),
-        us(compute),
-        us(write),
-        us(late),
-        f64::from(u8::from(overrun)),
+        us(timing.read),
+        us(timing.compute),
+        us(timing.write),
+        us(timing.late),
+        f64::from(u8::from(timing.overrun)),
         f64::from(clamps.low),
         f64::from(clamps.high),
+        timing.age * 1e6,
+        timing.interval * 1e6,
+        timing.hold * 1e6,
+        timing.gain_scale,
     ];
     ws.extra[..FIXED_EXTRA].copy_from_slice(&fixed);
     let n = ws.tensions.len();
-    let row = if reading.is_some() {
+    let row = if fresh {
         ws.extra[FIXED_EXTRA..].copy_from_slice(&ws.tensions);
         Row {
             t,
@@ -489,7 +617,7 @@ fn push_row(
             qd: &ws.qd,
             tau: controller.tau(),
             tau_nom: controller.tau_nom(),
-            b: controller.barriers(),
+            b: &ws.barriers,
             extra: &ws.extra,
         }
     } else {

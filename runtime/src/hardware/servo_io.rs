@@ -117,6 +117,7 @@ pub struct ServoIo {
     goal: Vec<[u8; 2]>,
     attempts: u32,
     requests: u16,
+    sent: Option<(Instant, usize)>,
 }
 
 impl ServoIo {
@@ -130,6 +131,7 @@ impl ServoIo {
             goal: vec![[0; 2]; n],
             attempts: 0,
             requests: 0,
+            sent: None,
         }
     }
 
@@ -141,6 +143,13 @@ impl ServoIo {
     /// The states of the last successful [`ServoIo::read_states`].
     pub fn states(&self) -> &[ServoState] {
         &self.states
+    }
+
+    /// When the request of the last successful [`ServoIo::read_states`] started to be
+    /// written, and its length in bytes: the servos sampled their state one wire time
+    /// after.
+    pub fn reading_sent(&self) -> Option<(Instant, usize)> {
+        self.sent
     }
 
     /// Sync-read attempts made by the last [`ServoIo::read_states`].
@@ -168,6 +177,7 @@ impl ServoIo {
             let raw = &mut self.raw[..self.ids.len() * usize::from(len)];
             match bus.sync_read(table::STATE_ADDRESS - extra, len, &self.ids, raw) {
                 Ok(()) => {
+                    self.sent = bus.last_sent();
                     let len = usize::from(len);
                     for (state, bytes) in self.states.iter_mut().zip(raw.chunks_exact(len)) {
                         *state = ServoState::from_bytes(&bytes[usize::from(extra)..]);
@@ -206,21 +216,24 @@ impl ServoIo {
     }
 }
 
-/// Runs one request/reply transaction up to three times: before each try the input is
-/// discarded, after a failed one the port is drained of late bytes.
+/// Runs one request/reply transaction up to `attempts` times (at least once): before each
+/// try the input is discarded, after a failed one the port is drained of late bytes.
 fn with_retries<P: ServoPort>(
     bus: &mut Bus<P>,
+    attempts: u32,
     mut transaction: impl FnMut(&mut Bus<P>) -> Result<(), BusError>,
 ) -> Result<(), BusError> {
     let mut result = Ok(());
-    for _ in 0..3 {
+    for attempt in 0..attempts.max(1) {
+        if attempt > 0 {
+            bus.note_retry();
+        }
         bus.port_mut().discard_input()?;
         match transaction(bus) {
             Ok(()) => return Ok(()),
             Err(error) => {
                 let timeout = bus.timeout();
                 drain(bus.port_mut(), timeout, 4 * timeout)?;
-                bus.note_retry();
                 result = Err(error);
             }
         }
@@ -228,71 +241,74 @@ fn with_retries<P: ServoPort>(
     result
 }
 
-/// Writes `data` at `addr` of `id`, trying up to three times.
+/// Writes `data` at `addr` of `id`, trying up to `attempts` times.
 pub fn write_register<P: ServoPort>(
     bus: &mut Bus<P>,
     id: u8,
     addr: u16,
     data: &[u8],
+    attempts: u32,
 ) -> Result<(), BusError> {
-    with_retries(bus, |bus| bus.write(id, addr, data).map(|_| ()))
+    with_retries(bus, attempts, |bus| bus.write(id, addr, data).map(|_| ()))
 }
 
-/// Reads `out.len()` bytes at `addr` of `id`, trying up to three times.
+/// Reads `out.len()` bytes at `addr` of `id`, trying up to `attempts` times.
 pub fn read_register<P: ServoPort>(
     bus: &mut Bus<P>,
     id: u8,
     addr: u16,
     out: &mut [u8],
+    attempts: u32,
 ) -> Result<(), BusError> {
-    with_retries(bus, |bus| bus.read(id, addr, out).map(|_| ()))
+    with_retries(bus, attempts, |bus| bus.read(id, addr, out).map(|_| ()))
 }
 
+/// Attempts of one transaction of the safe stop: few, so that a silent servo delays the
+/// stop of the others by little (its torque-off is broadcast as well).
+pub const STOP_ATTEMPTS: u32 = 3;
+
 /// Safe start, part one: every servo answers a ping with the expected model number, has
-/// torque off, is switched to current control and has Goal Current 0. Torque stays off.
+/// torque off, its Bus Watchdog cleared (when `watchdog`: a watchdog error of an earlier
+/// run makes the goal current read-only), is switched to current control and has Goal
+/// Current 0. Torque stays off. Each transaction is tried up to `attempts` times, as the
+/// loop retries its readings.
 pub fn prepare<P: ServoPort>(
     bus: &mut Bus<P>,
     ids: &[u8],
     model_number: u16,
+    watchdog: bool,
+    attempts: u32,
 ) -> Result<(), StartError> {
     for &id in ids {
-        let mut last = None;
-        for _ in 0..3 {
-            bus.port_mut()
-                .discard_input()
-                .map_err(|e| StartError::NoServo {
-                    id,
-                    source: e.into(),
-                })?;
-            match bus.ping(id) {
-                Ok(info) => {
-                    last = None;
-                    if info.model_number != model_number {
-                        return Err(StartError::WrongModel {
-                            id,
-                            found: info.model_number,
-                            expected: model_number,
-                        });
-                    }
-                    break;
-                }
-                Err(error) => {
-                    let timeout = bus.timeout();
-                    let _ = drain(bus.port_mut(), timeout, 4 * timeout);
-                    last = Some(error);
-                }
-            }
-        }
-        if let Some(source) = last {
-            return Err(StartError::NoServo { id, source });
+        let mut model = 0;
+        with_retries(bus, attempts, |bus| {
+            model = bus.ping(id)?.model_number;
+            Ok(())
+        })
+        .map_err(|source| StartError::NoServo { id, source })?;
+        if model != model_number {
+            return Err(StartError::WrongModel {
+                id,
+                found: model,
+                expected: model_number,
+            });
         }
     }
     for &id in ids {
         let register = |what, source| StartError::Register { id, what, source };
-        write_register(bus, id, table::TORQUE_ENABLE, &[0])
+        write_register(bus, id, table::TORQUE_ENABLE, &[0], attempts)
             .map_err(|e| register("disable torque", e))?;
+        if watchdog {
+            write_register(bus, id, table::BUS_WATCHDOG, &[0], attempts).map_err(|e| {
+                register(
+                    "clear the Bus Watchdog (firmware v38 or later has it; run with \
+                     --bus-watchdog-ms 0 on older firmware)",
+                    e,
+                )
+            })?;
+        }
         let mut mode = [0u8];
-        read_register(bus, id, table::OPERATING_MODE, &mut mode)
+        read_register(bus, id, table::OPERATING_MODE, &mut mode, attempts)
             .map_err(|e| register("read the operating mode", e))?;
         if mode[0] != table::CURRENT_CONTROL_MODE {
             write_register(
@@ -300,20 +316,37 @@ pub fn prepare<P: ServoPort>(
                 id,
                 table::OPERATING_MODE,
                 &[table::CURRENT_CONTROL_MODE],
+                attempts,
             )
             .map_err(|e| register("select current control", e))?;
         }
-        write_register(bus, id, table::GOAL_CURRENT, &0i16.to_le_bytes())
+        write_register(bus, id, table::GOAL_CURRENT, &0i16.to_le_bytes(), attempts)
             .map_err(|e| register("zero the goal current", e))?;
     }
     Ok(())
 }
 
-/// Safe start, part two: enables torque on every servo (after the caller has written the
+/// Safe start, part two: arms the Bus Watchdog with `watchdog_units` × 20 ms (`0`: leaves
+/// it off), so that a servo stops by itself when the controller falls silent (a killed or
+/// crashed host), then enables torque on every servo (after the caller has written the
 /// first goal currents).
-pub fn enable_torque<P: ServoPort>(bus: &mut Bus<P>, ids: &[u8]) -> Result<(), StartError> {
+pub fn enable_torque<P: ServoPort>(
+    bus: &mut Bus<P>,
+    ids: &[u8],
+    watchdog_units: u8,
+    attempts: u32,
+) -> Result<(), StartError> {
     for &id in ids {
-        write_register(bus, id, table::TORQUE_ENABLE, &[1]).map_err(|source| {
+        if watchdog_units > 0 {
+            write_register(bus, id, table::BUS_WATCHDOG, &[watchdog_units], attempts).map_err(
+                |source| StartError::Register {
+                    id,
+                    what: "arm the Bus Watchdog",
+                    source,
+                },
+            )?;
+        }
+        write_register(bus, id, table::TORQUE_ENABLE, &[1], attempts).map_err(|source| {
             StartError::Register {
                 id,
                 what: "enable torque",
@@ -325,9 +358,10 @@ pub fn enable_torque<P: ServoPort>(bus: &mut Bus<P>, ids: &[u8]) -> Result<(), S
 }
 
 /// Safe stop: zero tension (Goal Current 0) and torque off on every servo, each confirmed
-/// by its status packet where possible, and broadcast as well. Returns, per servo, whether
-/// its torque-off was confirmed.
-pub fn safe_stop<P: ServoPort>(bus: &mut Bus<P>, io: &mut ServoIo) -> Vec<bool> {
+/// by its status packet where possible, and broadcast as well; then the Bus Watchdog
+/// disarmed (when `watchdog`), so the idle servos do not report a watchdog error. Returns,
+/// per servo, whether its torque-off was confirmed.
+pub fn safe_stop<P: ServoPort>(bus: &mut Bus<P>, io: &mut ServoIo, watchdog: bool) -> Vec<bool> {
     let zeros = vec![0i16; io.ids().len()];
     for _ in 0..2 {
         let _ = io.write_currents(bus, &zeros);
@@ -335,9 +369,12 @@ pub fn safe_stop<P: ServoPort>(bus: &mut Bus<P>, io: &mut ServoIo) -> Vec<bool> 
     let ids = io.ids().to_vec();
     let confirmed: Vec<bool> = ids
         .iter()
-        .map(|&id| write_register(bus, id, table::TORQUE_ENABLE, &[0]).is_ok())
+        .map(|&id| write_register(bus, id, table::TORQUE_ENABLE, &[0], STOP_ATTEMPTS).is_ok())
         .collect();
     // Broadcast too: a servo whose replies are lost still obeys.
     let _ = bus.write(crate::protocol::BROADCAST_ID, table::TORQUE_ENABLE, &[0]);
+    if watchdog {
+        let _ = bus.write(crate::protocol::BROADCAST_ID, table::BUS_WATCHDOG, &[0]);
+    }
     confirmed
 }

@@ -150,6 +150,8 @@ pub struct Bus<P: Port> {
     tx: Vec<u8>,
     counters: BusCounters,
     garbage_base: u64,
+    /// When the last instruction packet started to be written, and its length in bytes.
+    sent: Option<(Instant, usize)>,
 }
 
 impl<P: Port> Bus<P> {
@@ -162,6 +164,7 @@ impl<P: Port> Bus<P> {
             tx: Vec::with_capacity(256),
             counters: BusCounters::default(),
             garbage_base: 0,
+            sent: None,
         }
     }
 
@@ -192,6 +195,12 @@ impl<P: Port> Bus<P> {
     /// Records that the caller retried a failed request.
     pub fn note_retry(&mut self) {
         self.counters.retries += 1;
+    }
+
+    /// When the last instruction packet started to be written, and its length in bytes
+    /// (`None` before the first): the servos act on it one wire time later.
+    pub fn last_sent(&self) -> Option<(Instant, usize)> {
+        self.sent
     }
 
     /// The port (e.g. to clear its input buffer after errors).
@@ -315,6 +324,7 @@ impl<P: Port> Bus<P> {
     fn send(&mut self) -> Result<(), BusError> {
         // Whatever is still buffered answers no request of ours.
         self.decoder.clear();
+        self.sent = Some((Instant::now(), self.tx.len()));
         self.port.write_all(&self.tx)?;
         self.port.flush()?;
         self.counters.transactions += 1;

@@ -1,0 +1,713 @@
+//! The `softcbf` binary end to end, as an operator (or an adversary) uses it: `softcbf run`
+//! against `softcbf emulate` over a pseudo-terminal, ended by every terminating signal, by
+//! SIGKILL, by a closed pipe; late replies; bad command lines; outputs that cannot be
+//! written. After each run the servos are read by an independent Protocol 2.0 reader
+//! written here from the e-Manual (its own packets and CRC), not by the project's codec.
+//!
+//! The emulator steps its plant in real time: run optimized (`cargo test --release`).
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::Mutex;
+use std::sync::mpsc::{Receiver, channel};
+use std::thread;
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_softcbf");
+
+/// One emulator and its runs at a time: the loop's timing is part of what is checked.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn robot() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/hardware-example.toml")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("softcbf-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Sends `signal` (a name such as `HUP`) to `child`.
+fn kill(child: &Child, signal: &str) {
+    let status = Command::new("kill")
+        .arg(format!("-{signal}"))
+        .arg(child.id().to_string())
+        .status()
+        .expect("the kill command");
+    assert!(status.success(), "kill -{signal} failed");
+}
+
+/// Waits at most `limit` for `child`; kills it (and fails) beyond.
+fn wait_for(child: &mut Child, limit: Duration, what: &str) -> ExitStatus {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{what}: still running after {limit:?}");
+        }
+        thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Lines of a child's output, read by a thread.
+fn lines_of(stream: impl Read + Send + 'static) -> Receiver<String> {
+    let (tx, rx) = channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stream).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// Collects lines until one contains `needle` (or `limit` passes); returns all so far.
+fn until(lines: &Receiver<String>, needle: &str, limit: Duration) -> Vec<String> {
+    let deadline = Instant::now() + limit;
+    let mut seen = Vec::new();
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        match lines.recv_timeout(left) {
+            Ok(line) => {
+                let done = line.contains(needle);
+                seen.push(line);
+                if done {
+                    break;
+                }
+            }
+            Err(_) => break,
+        }
+    }
+    seen
+}
+
+/// `softcbf emulate` in the background, stopped with SIGTERM when dropped.
+struct Emulator {
+    child: Child,
+    port: String,
+}
+
+impl Emulator {
+    fn start(extra: &[&str]) -> Emulator {
+        let mut child = Command::new(BIN)
+            .arg("emulate")
+            .arg("--robot")
+            .arg(robot())
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("softcbf emulate starts");
+        let lines = lines_of(child.stdout.take().unwrap());
+        let seen = until(&lines, "port:", Duration::from_secs(60));
+        let port = seen
+            .iter()
+            .find_map(|l| l.strip_prefix("port: "))
+            .unwrap_or_else(|| panic!("no port announced: {seen:?}"))
+            .to_string();
+        // Keep draining its output so it never blocks on a full pipe.
+        thread::spawn(move || for _ in lines {});
+        Emulator { child, port }
+    }
+}
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            let _ = Command::new("kill")
+                .arg(self.child.id().to_string())
+                .status();
+            let _ = wait_for(&mut self.child, Duration::from_secs(10), "emulator");
+        }
+    }
+}
+
+/// A run started in the background with its output collected.
+struct RunProcess {
+    child: Child,
+    stdout: Option<Receiver<String>>,
+}
+
+fn start_run(port: &str, out: &Path, extra: &[&str]) -> RunProcess {
+    let mut child = Command::new(BIN)
+        .arg("run")
+        .arg("--robot")
+        .arg(robot())
+        .args(["--port", port, "--out"])
+        .arg(out)
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("softcbf run starts");
+    let stdout = Some(lines_of(child.stdout.take().unwrap()));
+    RunProcess { child, stdout }
+}
+
+/// Waits for the run to end; its exit code, standard output and standard error.
+fn finish_run(mut run: RunProcess, what: &str) -> (i32, String, String) {
+    let status = wait_for(&mut run.child, Duration::from_secs(30), what);
+    let mut stderr = String::new();
+    if let Some(mut e) = run.child.stderr.take() {
+        let _ = e.read_to_string(&mut stderr);
+    }
+    let stdout = run
+        .stdout
+        .map(|rx| rx.try_iter().collect::<Vec<_>>().join("\n"))
+        .unwrap_or_default();
+    assert!(
+        !stderr.contains("panicked"),
+        "{what}: the run panicked:\n{stderr}"
+    );
+    (status.code().unwrap_or(-1), stdout, stderr)
+}
+
+// ---------------------------------------------------------------------------------------
+// An independent Protocol 2.0 reader (e-Manual "Protocol 2.0"): CRC-16 with polynomial
+// 0x8005, initial value 0, most significant bit first, over the packet up to the CRC.
+
+fn crc(bytes: &[u8]) -> u16 {
+    let mut crc: u16 = 0;
+    for &byte in bytes {
+        crc ^= u16::from(byte) << 8;
+        for _ in 0..8 {
+            crc = if crc & 0x8000 != 0 {
+                (crc << 1) ^ 0x8005
+            } else {
+                crc << 1
+            };
+        }
+    }
+    crc
+}
+
+/// A READ instruction packet for `len` bytes at `address` of servo `id` (no stuffing is
+/// needed: no parameter here contains FF FF FD).
+fn read_packet(id: u8, address: u16, len: u16) -> Vec<u8> {
+    let mut p = vec![0xFF, 0xFF, 0xFD, 0x00, id, 7, 0, 0x02];
+    p.extend_from_slice(&address.to_le_bytes());
+    p.extend_from_slice(&len.to_le_bytes());
+    let c = crc(&p);
+    p.extend_from_slice(&c.to_le_bytes());
+    p
+}
+
+/// Reads `len` bytes at `address` of servo `id` over the port at `path`, trying a few times.
+fn read_register(path: &str, id: u8, address: u16, len: u16) -> Vec<u8> {
+    let mut port = serialport::new(path, 1_000_000)
+        .timeout(Duration::from_millis(5))
+        .open()
+        .unwrap_or_else(|e| panic!("the reader cannot open {path}: {e}"));
+    for _ in 0..5 {
+        let _ = port.clear(serialport::ClearBuffer::Input);
+        port.write_all(&read_packet(id, address, len)).unwrap();
+        let want = 11 + usize::from(len);
+        let mut reply = Vec::new();
+        let deadline = Instant::now() + Duration::from_millis(300);
+        while Instant::now() < deadline {
+            let mut buf = [0u8; 64];
+            match port.read(&mut buf) {
+                Ok(n) => reply.extend_from_slice(&buf[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => panic!("reader: {e}"),
+            }
+            if let Some(start) = reply.windows(4).position(|w| w == [0xFF, 0xFF, 0xFD, 0x00])
+                && reply.len() >= start + want
+            {
+                let p = &reply[start..start + want];
+                let ok = p[4] == id
+                    && p[7] == 0x55
+                    && p[8] & 0x7F == 0
+                    && crc(&p[..want - 2]) == u16::from_le_bytes([p[want - 2], p[want - 1]]);
+                if ok {
+                    return p[9..9 + usize::from(len)].to_vec();
+                }
+                break;
+            }
+        }
+    }
+    panic!("servo {id} did not answer a read of {len} bytes at {address}");
+}
+
+const TORQUE_ENABLE: u16 = 64;
+const BUS_WATCHDOG: u16 = 98;
+const GOAL_CURRENT: u16 = 102;
+const PRESENT_CURRENT: u16 = 126;
+
+/// Torque Enable and Goal Current of servos 1..=6, read independently.
+fn assert_torque_off(port: &str, what: &str) {
+    for id in 1..=6 {
+        let torque = read_register(port, id, TORQUE_ENABLE, 1)[0];
+        let goal = read_register(port, id, GOAL_CURRENT, 2);
+        assert_eq!(torque, 0, "{what}: servo {id} has torque on");
+        assert_eq!(goal, [0, 0], "{what}: servo {id} has goal current {goal:?}");
+    }
+}
+
+/// The CSV log is whole: a header, then rows of the header's width, each ending in a
+/// newline; returns the number of rows. With `last_may_be_cut`, a last line without its
+/// newline (the row being written when the process died) is allowed and not counted.
+fn whole_rows(path: &Path, last_may_be_cut: bool) -> usize {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let mut lines: Vec<&str> = text.split('\n').collect();
+    let tail = lines.pop().unwrap_or_default();
+    assert!(
+        tail.is_empty() || last_may_be_cut,
+        "{}: the last row is cut: {tail:?}",
+        path.display()
+    );
+    assert!(!lines.is_empty(), "{}: no header", path.display());
+    let width = lines[0].split(',').count();
+    for (k, line) in lines.iter().enumerate() {
+        assert_eq!(
+            line.split(',').count(),
+            width,
+            "{}: line {} has another width",
+            path.display(),
+            k + 1
+        );
+    }
+    lines.len() - 1
+}
+
+/// A set point inside the safe set: these runs are about stopping, not about barriers.
+const INSIDE: &str = "0,0,-0.02,0,0,-0.01";
+
+#[test]
+fn every_terminating_signal_ends_in_the_safe_stop_with_a_whole_log() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let root = temp_dir("signals");
+    for signal in ["HUP", "INT", "TERM", "QUIT", "PIPE"] {
+        let out = root.join(signal);
+        let run = start_run(
+            &emulator.port,
+            &out,
+            &["--duration", "10", "--set-point", INSIDE],
+        );
+        let seen = until(
+            run.stdout.as_ref().unwrap(),
+            "softcbf run:",
+            Duration::from_secs(20),
+        );
+        assert!(!seen.is_empty(), "SIG{signal}: the run did not start");
+        thread::sleep(Duration::from_millis(1500));
+        // The log is streamed: whole rows on disk while the run goes on.
+        let rows = whole_rows(&out.join("trajectory.csv"), false);
+        assert!(rows >= 20, "SIG{signal}: {rows} rows after 1.5 s");
+        kill(&run.child, signal);
+        let (code, stdout, stderr) = finish_run(run, &format!("SIG{signal}"));
+        assert_eq!(code, 0, "SIG{signal}: exit {code}\n{stdout}\n{stderr}");
+        assert!(
+            stdout.contains(&format!("stopped: interrupted by SIG{signal}")),
+            "SIG{signal}: {stdout}"
+        );
+        assert!(stdout.contains("verdict: safe"), "SIG{signal}: {stdout}");
+        assert!(
+            whole_rows(&out.join("trajectory.csv"), false) >= rows,
+            "SIG{signal}"
+        );
+        assert!(out.join("figure.png").exists(), "SIG{signal}: no figure");
+        assert_torque_off(&emulator.port, &format!("SIG{signal}"));
+    }
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn after_sigkill_the_log_is_whole_and_the_servos_stop_by_themselves() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let out = temp_dir("sigkill");
+    let mut run = start_run(
+        &emulator.port,
+        &out,
+        &["--duration", "10", "--set-point", INSIDE],
+    );
+    until(
+        run.stdout.as_ref().unwrap(),
+        "softcbf run:",
+        Duration::from_secs(20),
+    );
+    thread::sleep(Duration::from_millis(1500));
+    // While it runs, torque is on (read without disturbing: the loop is reading too).
+    kill(&run.child, "KILL");
+    let _ = wait_for(&mut run.child, Duration::from_secs(5), "SIGKILL");
+    let rows = whole_rows(&out.join("trajectory.csv"), true);
+    assert!(rows >= 20, "{rows} rows after 1.5 s");
+    // The default Bus Watchdog of a 33 Hz run is 200 ms: by then every servo stopped, with
+    // its watchdog register at −1 and no current, though nobody turned the torque off.
+    thread::sleep(Duration::from_millis(400));
+    for id in 1..=6 {
+        let watchdog = read_register(&emulator.port, id, BUS_WATCHDOG, 1)[0];
+        assert_eq!(watchdog, 0xFF, "servo {id}: Bus Watchdog {watchdog}");
+        let current = read_register(&emulator.port, id, PRESENT_CURRENT, 2);
+        assert_eq!(current, [0, 0], "servo {id}: present current {current:?}");
+    }
+    // The next run clears the watchdog error and runs normally.
+    let run = start_run(
+        &emulator.port,
+        &out,
+        &["--duration", "1", "--set-point", INSIDE],
+    );
+    let (code, stdout, stderr) = finish_run(run, "the run after SIGKILL");
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    assert_torque_off(&emulator.port, "after the second run");
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let root = temp_dir("stdout");
+
+    // `softcbf run … | head -c 10`: the reader goes away after 10 bytes; the next line
+    // written raises SIGPIPE, which ends the run through the safe stop.
+    let out = root.join("pipe");
+    let mut child = Command::new(BIN)
+        .arg("run")
+        .arg("--robot")
+        .arg(robot())
+        .args(["--port", &emulator.port, "--duration", "5"])
+        .args(["--set-point", INSIDE, "--out"])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut head = [0u8; 10];
+    child
+        .stdout
+        .as_mut()
+        .unwrap()
+        .read_exact(&mut head)
+        .unwrap();
+    drop(child.stdout.take());
+    let (code, _, stderr) = finish_run(
+        RunProcess {
+            child,
+            stdout: None,
+        },
+        "| head -c 10",
+    );
+    assert_eq!(code, 0, "{stderr}");
+    assert!(out.join("figure.png").exists(), "no figure: {stderr}");
+    whole_rows(&out.join("trajectory.csv"), false);
+    assert_torque_off(&emulator.port, "| head -c 10");
+
+    // `> /dev/full`: the run goes on and stops safely; the lost output is an error.
+    let out = root.join("full");
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let child = Command::new(BIN)
+        .arg("run")
+        .arg("--robot")
+        .arg(robot())
+        .args(["--port", &emulator.port, "--duration", "1"])
+        .args(["--set-point", INSIDE, "--out"])
+        .arg(&out)
+        .stdout(Stdio::from(full))
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (code, _, stderr) = finish_run(
+        RunProcess {
+            child,
+            stdout: None,
+        },
+        "> /dev/full",
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("cannot write standard output"), "{stderr}");
+    assert!(whole_rows(&out.join("trajectory.csv"), false) >= 25);
+    assert!(out.join("figure.png").exists());
+    assert_torque_off(&emulator.port, "> /dev/full");
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn a_run_below_the_barrier_threshold_exits_unsafe() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let out = temp_dir("unsafe");
+    // Plain PD+ toward the paper's set point drives the plates into each other.
+    let run = start_run(&emulator.port, &out, &["--duration", "2", "--no-filter"]);
+    let (code, stdout, stderr) = finish_run(run, "--no-filter");
+    assert_eq!(code, 3, "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("verdict: UNSAFE: lowest barrier"),
+        "{stdout}"
+    );
+    assert!(stderr.contains("below the threshold"), "{stderr}");
+    assert_torque_off(&emulator.port, "--no-filter");
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+/// `stopped: …` and `lowest barrier …` of a run's report.
+fn lowest_barrier(stdout: &str) -> f64 {
+    stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("lowest barrier "))
+        .and_then(|l| l.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(f64::NAN)
+}
+
+#[test]
+fn late_replies_slow_the_loop_but_never_pass_for_a_safe_run() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    for delay in ["3", "5"] {
+        let emulator = Emulator::start(&["--delay-ms", delay]);
+        let out = temp_dir(&format!("delay-{delay}"));
+        let run = start_run(&emulator.port, &out, &["--duration", "3"]);
+        let (code, stdout, stderr) = finish_run(run, &format!("--delay-ms {delay}"));
+        println!("--delay-ms {delay}: exit {code}\n{stdout}\n{stderr}");
+        let lowest = lowest_barrier(&stdout);
+        match code {
+            // Safe: then the barrier really stayed above the threshold.
+            0 => assert!(
+                lowest >= -1e-3,
+                "exit 0 with a lowest barrier of {lowest} m"
+            ),
+            // Or the loop said why it was not: unsafe, or too slow.
+            3 => assert!(lowest < -1e-3 || stdout.contains("fell back")),
+            4 => assert!(stdout.contains("below the minimum"), "{stdout}"),
+            other => panic!("--delay-ms {delay}: exit {other}\n{stdout}\n{stderr}"),
+        }
+        assert_torque_off(&emulator.port, &format!("--delay-ms {delay}"));
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
+#[test]
+fn the_emulator_stops_at_once_while_a_reply_is_delayed() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    for signal in ["INT", "TERM"] {
+        let mut emulator = Emulator::start(&["--delay-ms", "60000"]);
+        // A ping to servo 1: its reply is due in a minute.
+        let mut port = serialport::new(&emulator.port, 1_000_000)
+            .timeout(Duration::from_millis(5))
+            .open()
+            .unwrap();
+        let mut ping = vec![0xFF, 0xFF, 0xFD, 0x00, 1, 3, 0, 0x01];
+        let c = crc(&ping);
+        ping.extend_from_slice(&c.to_le_bytes());
+        port.write_all(&ping).unwrap();
+        thread::sleep(Duration::from_millis(300));
+        kill(&emulator.child, signal);
+        let status = wait_for(
+            &mut emulator.child,
+            Duration::from_secs(2),
+            &format!("the emulator after SIG{signal}"),
+        );
+        assert_eq!(status.code(), Some(0), "SIG{signal}");
+    }
+}
+
+/// Runs `softcbf args…` to its end: exit code, stdout, stderr.
+fn softcbf(args: &[&str]) -> (i32, String, String) {
+    let output = Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("softcbf runs");
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(!stderr.contains("panicked"), "{args:?} panicked:\n{stderr}");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        stderr,
+    )
+}
+
+#[test]
+fn bad_command_lines_are_refused_naming_the_option() {
+    let robot = robot();
+    let robot = robot.to_str().unwrap();
+    let a_file = temp_dir("a-file").join("file");
+    std::fs::write(&a_file, "not a directory").unwrap();
+    let a_file = a_file.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--robot", robot, "--port", "/nonexistent/port"];
+        args.extend_from_slice(extra);
+        softcbf(&args)
+    };
+    let emulate = |extra: &[&str]| {
+        let mut args = vec!["emulate", "--robot", robot];
+        args.extend_from_slice(extra);
+        softcbf(&args)
+    };
+    let cases: Vec<(&str, (i32, String, String), &str)> = vec![
+        (
+            "emulate --delay-ms inf",
+            emulate(&["--delay-ms", "inf"]),
+            "--delay-ms",
+        ),
+        (
+            "emulate --delay-ms 1e308",
+            emulate(&["--delay-ms", "1e308"]),
+            "--delay-ms",
+        ),
+        (
+            "emulate --delay-ms nan",
+            emulate(&["--delay-ms", "nan"]),
+            "--delay-ms",
+        ),
+        (
+            "emulate --silent-after 1e308",
+            emulate(&["--silent-after", "1e308"]),
+            "--silent-after",
+        ),
+        (
+            "emulate --silent-after nan",
+            emulate(&["--silent-after", "nan"]),
+            "--silent-after",
+        ),
+        (
+            "emulate --baud 0",
+            emulate(&["--baud", "0"]),
+            "--baud: 0 bit/s is not an X-series baud rate",
+        ),
+        ("emulate --drop 2", emulate(&["--drop", "2"]), "--drop"),
+        ("run --rate -33", run(&["--rate", "-33"]), "--rate: must be"),
+        (
+            "run --rate 1e-9",
+            run(&["--rate", "1e-9", "--duration", "1"]),
+            "--rate",
+        ),
+        ("run --baud 0", run(&["--baud", "0"]), "--baud"),
+        ("run --baud 12345", run(&["--baud", "12345"]), "--baud"),
+        (
+            "run --max-errors 100000",
+            run(&["--max-errors", "100000"]),
+            "--max-errors",
+        ),
+        (
+            "run --duration 0.001",
+            run(&["--duration", "0.001"]),
+            "shorter than one tick",
+        ),
+        (
+            "run --duration inf",
+            run(&["--duration", "inf"]),
+            "--duration",
+        ),
+        (
+            "run --set-point 1e308",
+            run(&["--set-point", "1e308,0,0,0,0,0"]),
+            "--set-point",
+        ),
+        (
+            "run --min-rate 50",
+            run(&["--min-rate", "50"]),
+            "--min-rate",
+        ),
+        (
+            "run --bus-watchdog-ms 40",
+            run(&["--bus-watchdog-ms", "40"]),
+            "--bus-watchdog-ms",
+        ),
+        (
+            "run --barrier-threshold nan",
+            run(&["--barrier-threshold", "nan"]),
+            "--barrier-threshold",
+        ),
+        (
+            "run --out FILE",
+            run(&["--out", a_file]),
+            "is a file, not a directory",
+        ),
+        (
+            "model --q 1e308",
+            softcbf(&["model", "--q", "1e308,0,0,0,0,0"]),
+            "--q",
+        ),
+        (
+            "model --q 1e154",
+            softcbf(&["model", "--q", "1e154,0,0,0,0,0"]),
+            "--q",
+        ),
+        (
+            "model --q δL 1e308",
+            softcbf(&["model", "--q", "0,0,1e308,0,0,0"]),
+            "--q",
+        ),
+        (
+            "model --qd 1e308",
+            softcbf(&["model", "--qd", "1e308,0,0,0,0,0"]),
+            "--qd",
+        ),
+        (
+            "simulate --barrier-threshold 5",
+            softcbf(&["simulate", "--barrier-threshold", "5"]),
+            "--barrier-threshold",
+        ),
+    ];
+    for (what, (code, _, stderr), needle) in cases {
+        assert!(code == 1 || code == 2, "{what}: exit {code}\n{stderr}");
+        assert!(
+            stderr.contains(needle),
+            "{what}: `{needle}` not in:\n{stderr}"
+        );
+    }
+}
+
+#[test]
+fn model_and_simulate_report_an_output_they_cannot_write() {
+    let full = || {
+        Stdio::from(
+            std::fs::OpenOptions::new()
+                .write(true)
+                .open("/dev/full")
+                .unwrap(),
+        )
+    };
+    let output = Command::new(BIN)
+        .args(["model", "--q", "0.01,0,0,0,0,0"])
+        .stdout(full())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("cannot write standard output"), "{stderr}");
+
+    let out = temp_dir("simulate-full");
+    let output = Command::new(BIN)
+        .args(["simulate", "--out"])
+        .arg(&out)
+        .stdout(full())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot write standard output"), "{stderr}");
+    // The outputs themselves were written.
+    assert!(out.join("summary.json").exists());
+    std::fs::remove_dir_all(&out).unwrap();
+
+    // A closed pipe is the reader's choice, not an error.
+    let mut child = Command::new(BIN)
+        .args(["model", "--q", "0.01,0,0,0,0,0"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut head = [0u8; 10];
+    child
+        .stdout
+        .as_mut()
+        .unwrap()
+        .read_exact(&mut head)
+        .unwrap();
+    drop(child.stdout.take());
+    assert_eq!(child.wait().unwrap().code(), Some(0));
+}
