@@ -341,10 +341,7 @@ pub fn serve<P: Read + Write>(
     while !stop.load(Ordering::Relaxed) {
         let now = Instant::now();
         device.poll(now)?;
-        while let Some(out) = device.take_due(now) {
-            port.write_all(&out.bytes)?;
-            port.flush()?;
-        }
+        // The record first: whoever reads a reply finds its request logged.
         if let Some(shared) = log {
             let own = device.log();
             let changed = own.requests
@@ -355,6 +352,10 @@ pub fn serve<P: Read + Write>(
                 sync(own, shared, &mut synced);
                 seen = changed;
             }
+        }
+        while let Some(out) = device.take_due(now) {
+            port.write_all(&out.bytes)?;
+            port.flush()?;
         }
         // A request to finish or a reply to send keeps the loop off the port (a read
         // could block past it); otherwise wait for bytes.
