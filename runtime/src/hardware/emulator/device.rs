@@ -334,7 +334,8 @@ impl<'m> Device<'m> {
         let mut states = Vec::new();
         let replies = std::mem::take(&mut self.replies);
         for reply in &replies {
-            let fate = fate_of(reply.id, &self.faults, end - self.start, &mut self.draws);
+            let since_start = end.saturating_duration_since(self.start);
+            let fate = fate_of(reply.id, &self.faults, since_start, &mut self.draws);
             self.log.fates[fate as usize] += 1;
             if let Some(state) = packet.as_ref().and_then(|p| state_block(p, &reply.params)) {
                 states.push(StateReply {
