@@ -9,13 +9,15 @@
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock, mpsc};
+use std::sync::{Arc, Mutex, OnceLock, mpsc};
 use std::thread;
 use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::emulator::device::Device;
-use softcbf::hardware::emulator::{self, EmulatorError, EmulatorSettings, Faults, ReplyFate};
+use softcbf::hardware::emulator::{
+    self, EmulatorError, EmulatorLog, EmulatorSettings, Faults, ReplyFate,
+};
 use softcbf::hardware::mapping::TendonMap;
 use softcbf::integrator::Tolerances;
 use softcbf::model::Model;
@@ -880,15 +882,23 @@ fn serve_returns_soon_after_stop_while_a_reply_is_pending() {
     master.set_timeout(Duration::from_millis(20)).unwrap();
     let name = slave.name().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
+    let shared = Arc::new(Mutex::new(EmulatorLog::default()));
     let (ready_tx, ready_rx) = mpsc::channel();
     let (done_tx, done_rx) = mpsc::channel();
     {
-        let stop = stop.clone();
+        let (stop, shared) = (stop.clone(), shared.clone());
         thread::spawn(move || {
             let mut settings = EmulatorSettings::new(BAUD);
             settings.faults.delay = Duration::from_secs(3600);
             let mut ready = || ready_tx.send(()).unwrap();
-            let result = emulator::serve(&robot(), &settings, &mut master, &stop, &mut ready, None);
+            let result = emulator::serve(
+                &robot(),
+                &settings,
+                &mut master,
+                &stop,
+                &mut ready,
+                Some(&*shared),
+            );
             let _ = done_tx.send(result.map_err(|e| e.to_string()));
         });
     }
@@ -898,10 +908,14 @@ fn serve_returns_soon_after_stop_while_a_reply_is_pending() {
         .open_native()
         .unwrap();
     std::io::Write::write_all(&mut port, &packet(|o| encode_ping(1, o))).unwrap();
-    // Let the ping arrive and its reply be scheduled an hour from now, then stop.
-    thread::sleep(Duration::from_millis(300));
+    // Once the ping's reply is scheduled an hour from now, stop. The bounds only keep a
+    // failure from hanging.
+    let give_up = Instant::now() + Duration::from_secs(30);
+    while shared.lock().unwrap().fates[ReplyFate::Delayed as usize] == 0 && Instant::now() < give_up
+    {
+        thread::sleep(Duration::from_millis(5));
+    }
     stop.store(true, Ordering::Relaxed);
-    // Returning takes a few ms; the bound only keeps a failure from hanging for an hour.
     let log = done_rx
         .recv_timeout(Duration::from_secs(30))
         .expect("serve returns once stop is set")
