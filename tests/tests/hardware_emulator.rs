@@ -3,18 +3,27 @@
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, mpsc};
+use std::sync::{Arc, Mutex, mpsc};
 use std::thread;
 use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::control_table as table;
-use softcbf::hardware::emulator::{self, EmulatorSettings, wire_time};
+use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, wire_time};
 use softcbf::protocol::{BROADCAST_ID, Bus, BusError, StatusError};
 use softcbf_codegen::robot::Robot;
 
 /// Runs `body` against an emulator of the example robot at `baud`.
 fn with_emulator(baud: u32, body: impl FnOnce(&mut Bus<TTYPort>)) {
+    with_logged_emulator(baud, Arc::default(), body);
+}
+
+/// [`with_emulator`], the emulator keeping `log` up to date.
+fn with_logged_emulator(
+    baud: u32,
+    log: Arc<Mutex<EmulatorLog>>,
+    body: impl FnOnce(&mut Bus<TTYPort>),
+) {
     let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../robots/hardware-example.toml"
@@ -30,7 +39,14 @@ fn with_emulator(baud: u32, body: impl FnOnce(&mut Bus<TTYPort>)) {
         thread::spawn(move || {
             let settings = EmulatorSettings::new(baud);
             let mut ready = || tx.send(()).unwrap();
-            emulator::serve(&robot, &settings, &mut master, &stop, &mut ready, None)
+            emulator::serve(
+                &robot,
+                &settings,
+                &mut master,
+                &stop,
+                &mut ready,
+                Some(&*log),
+            )
         })
     };
     rx.recv().unwrap();
@@ -133,5 +149,39 @@ fn replies_are_paced_by_wire_time() {
         let elapsed = start.elapsed();
         let wire = wire_time(20 + 6 * 21, baud);
         assert!(elapsed >= wire, "{elapsed:?} < wire time {wire:?}");
+    });
+}
+
+#[test]
+fn a_servo_stops_on_its_own_when_the_controller_falls_silent() {
+    let log = Arc::new(Mutex::new(EmulatorLog::default()));
+    with_logged_emulator(1_000_000, log.clone(), |bus| {
+        assert_eq!(status_code(bus.write(3, table::OPERATING_MODE, &[0])), 0);
+        let goal = 200i16.to_le_bytes();
+        assert_eq!(status_code(bus.write(3, table::GOAL_CURRENT, &goal)), 0);
+        assert_eq!(status_code(bus.write(3, table::TORQUE_ENABLE, &[1])), 0);
+        // Bus Watchdog 3: 60 ms without an instruction packet stops the servo.
+        assert_eq!(status_code(bus.write(3, table::BUS_WATCHDOG, &[3])), 0);
+        let requests = log.lock().unwrap().requests;
+        // Say nothing until the emulator reports the stop (it checks its clock without
+        // being asked); the bound only keeps a failure from hanging.
+        let give_up = Instant::now() + Duration::from_secs(10);
+        while log.lock().unwrap().watchdog_stops.is_empty() && Instant::now() < give_up {
+            thread::sleep(Duration::from_millis(10));
+        }
+        let seen = log.lock().unwrap().clone();
+        assert_eq!(seen.watchdog_stops.len(), 1, "the servo stopped");
+        assert_eq!(seen.watchdog_stops[0].1, 3);
+        assert_eq!(
+            seen.requests, requests,
+            "with no packet since the watchdog was set"
+        );
+        let mut byte = [0u8];
+        bus.read(3, table::BUS_WATCHDOG, &mut byte).unwrap();
+        assert_eq!(byte[0] as i8, -1);
+        let mut current = [0u8; 2];
+        bus.read(3, table::PRESENT_CURRENT, &mut current).unwrap();
+        assert_eq!(i16::from_le_bytes(current), 0, "pulls with nothing");
+        bus.write(BROADCAST_ID, table::TORQUE_ENABLE, &[0]).unwrap();
     });
 }

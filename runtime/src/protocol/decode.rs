@@ -182,6 +182,13 @@ impl Decoder {
         self.end - self.start
     }
 
+    /// The bytes held and not yet decoded. Once [`Decoder::next_packet`] has returned
+    /// `None` they are the start of an incomplete packet (or of its header), so a servo
+    /// can tell how long that packet announces itself to be and give up on it in time.
+    pub fn pending_bytes(&self) -> &[u8] {
+        &self.buf[self.start..self.end]
+    }
+
     /// Room for more bytes (after compaction).
     pub fn free(&self) -> usize {
         self.buf.len() - self.pending()

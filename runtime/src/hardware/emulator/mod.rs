@@ -1,17 +1,37 @@
 //! `softcbf emulate`: a servo bus on a pseudo-terminal that answers Protocol 2.0 as the
 //! robot's X-series servos would, their motion given by the simulated plant.
 //!
-//! [`servos`] holds the control tables and instruction semantics; this file is the
-//! transport: it decodes requests, paces replies by wire time at the configured baud (so
-//! a loop rate measured against the emulator means something), injects faults
-//! ([`Faults`]) and, for tests, records what was sent ([`EmulatorLog`]).
+//! [`servos`] holds the control tables and what each instruction does; [`device`] is the
+//! bus without I/O (bytes in with their arrival time, status packets out with the time
+//! they are due, timers); [`serve`] is the I/O loop around it on a port. It paces replies
+//! by wire time at the configured baud (so a loop rate measured against the emulator means
+//! something), injects faults ([`Faults`]) and, for tests, records the bus
+//! ([`EmulatorLog`]).
 //!
 //! Timing model: a request occupies the bus for its wire time (10 bits per byte, 8N1)
-//! from when it arrives or the bus is free, whichever is later; each status packet then
-//! follows after the return delay and its own wire time, and is written when its last
-//! byte would have arrived. Instructions are executed, and the plant sampled, at the end
-//! of the request. Dropped and silenced replies take no bus time.
+//! from when it arrives or the bus is free, whichever is later; it is executed, and the
+//! plant sampled, when its last byte has crossed. Each status packet then follows after
+//! the servo's Return Delay Time and its own wire time, and is written when its last byte
+//! would have arrived. Dropped and silenced replies take no bus time.
+//!
+//! Packet timeout: the e-Manual does not say how long an X-series servo waits for the rest
+//! of a packet. The emulator gives up on an incomplete packet once the wire time of the
+//! whole packet its length field announces (of its 7-byte prefix while that is incomplete)
+//! plus 10 ms has passed since its first byte arrived, and drops every byte held. The wire
+//! time is the least a sender needs; the 10 ms cover the gaps a USB adapter (1 ms frames)
+//! and a loaded host leave inside one packet, and match the 2 ms + adapter latency the
+//! ROBOTIS SDK allows a whole packet on its side. A header announcing 1024 bytes thus
+//! silences the bus for 20 ms at 1 Mbit/s (1.1 s at 9600 bit/s) instead of until 1024
+//! bytes have come.
+//!
+//! Bus Watchdog: while a servo's torque is on and its Bus Watchdog (98) holds 1–127, it
+//! stops (pulls with zero tension) as soon as no instruction packet has reached it for
+//! longer than that many 20 ms, whether or not anything arrives; the register then reads
+//! −1 and the Goal values refuse writes with a Data Range Error until a valid value
+//! (0 clears the error) is written. Every instruction packet on the bus with a good CRC
+//! counts, whatever its ID.
 
+pub mod device;
 pub mod servos;
 
 use std::io::{self, ErrorKind, Read, Write};
@@ -21,15 +41,12 @@ use std::time::{Duration, Instant};
 
 use softcbf_codegen::robot::Robot;
 
-use crate::hardware::control_table::{self as table, ServoState};
+use crate::hardware::control_table::ServoState;
 use crate::hardware::mapping::{MappingError, TendonMap};
 use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::{Model, ModelError};
 use crate::plant::Plant;
-use crate::protocol::{
-    Decoder, Instruction, PacketBuf, encode_status, parse_sync_write, parse_write,
-};
-use servos::{Reply, Servos};
+use device::Device;
 
 /// Faults to inject. Fractions are probabilities per status packet.
 #[derive(Clone, Debug, PartialEq)]
@@ -70,7 +87,8 @@ impl Default for Faults {
 pub struct EmulatorSettings {
     /// Baud rate used for pacing [bit/s].
     pub baud: u32,
-    /// Return Delay Time of every servo (the X-series' default is 500 µs; 0 is usual).
+    /// Return Delay Time of every servo at the start (the X-series' default is 500 µs; 0
+    /// is usual; at most 508 µs, in steps of 2 µs). A servo's own register rules after.
     pub return_delay: Duration,
     /// Simulated time the robot rests with zero tension before serving, so it starts at
     /// its equilibrium under gravity \[s\].
@@ -159,24 +177,16 @@ pub struct EmulatorLog {
     pub torque: Vec<bool>,
     /// Status packets by fate: sent, delayed, dropped, corrupted, silent.
     pub fates: [u64; 5],
+    /// Each Bus Watchdog expiry: time \[s\] and the servo it stopped.
+    pub watchdog_stops: Vec<(f64, u8)>,
+    /// Incomplete packets dropped by the packet timeout.
+    pub stale_packets: u64,
 }
 
-/// SplitMix64: the fault draws.
-struct Draws(u64);
-
-impl Draws {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// Wire time of `bytes` bytes at `baud` (8 data bits, 1 start and 1 stop bit).
+/// Wire time of `bytes` bytes at `baud` (8 data bits, 1 start and 1 stop bit); a baud of
+/// 0 counts as 1 bit/s.
 pub fn wire_time(bytes: usize, baud: u32) -> Duration {
-    Duration::from_secs_f64(10.0 * bytes as f64 / f64::from(baud))
+    Duration::from_secs_f64(10.0 * bytes as f64 / f64::from(baud.max(1)))
 }
 
 /// Sleeps until `deadline`, spinning the last 200 µs for precision.
@@ -196,6 +206,37 @@ pub fn wait_until(deadline: Instant) {
     }
 }
 
+/// Longest sleep between two looks at the stop flag.
+const STOP_POLL: Duration = Duration::from_millis(10);
+
+/// [`wait_until`] that returns early, within [`STOP_POLL`], once `stop` is set.
+fn wait_until_or_stop(deadline: Instant, stop: &AtomicBool) {
+    let spin = Duration::from_micros(200);
+    while !stop.load(Ordering::Relaxed) {
+        let now = Instant::now();
+        if now >= deadline {
+            return;
+        }
+        let left = deadline - now;
+        if left > spin {
+            std::thread::sleep((left - spin).min(STOP_POLL));
+        } else {
+            std::thread::yield_now();
+        }
+    }
+}
+
+/// Longest Return Delay Time of an X-series servo (register 254 × 2 µs).
+const MAX_RETURN_DELAY: Duration = Duration::from_micros(508);
+
+/// Longest settling time accepted \[s\].
+const MAX_SETTLE: f64 = 3600.0;
+
+fn setting(message: String) -> EmulatorError {
+    EmulatorError::Setting(message)
+}
+
+/// Refuses settings the emulator cannot use, naming the setting.
 fn check(settings: &EmulatorSettings) -> Result<(), EmulatorError> {
     let f = &settings.faults;
     for (name, p) in [
@@ -204,22 +245,80 @@ fn check(settings: &EmulatorSettings) -> Result<(), EmulatorError> {
         ("delay fraction", f.delay_fraction),
     ] {
         if !(0.0..=1.0).contains(&p) {
-            return Err(EmulatorError::Setting(format!(
-                "{name}: {p} is not a fraction in [0, 1]"
-            )));
+            return Err(setting(format!("{name} {p}: not a fraction in [0, 1]")));
         }
     }
-    if settings.baud == 0 || !(settings.settle.is_finite() && settings.settle >= 0.0) {
-        return Err(EmulatorError::Setting(
-            "baud must be > 0 and settle ≥ 0".into(),
+    if settings.baud == 0 {
+        return Err(setting(
+            "baud rate 0 bit/s: must be at least 1 bit/s".into(),
         ));
+    }
+    if settings.return_delay > MAX_RETURN_DELAY {
+        return Err(setting(format!(
+            "return delay {} µs: an X-series servo waits at most 508 µs (Return Delay Time 254 × 2 µs)",
+            settings.return_delay.as_micros()
+        )));
+    }
+    if !(settings.settle.is_finite() && (0.0..=MAX_SETTLE).contains(&settings.settle)) {
+        return Err(setting(format!(
+            "settling time {} s: must be between 0 and {MAX_SETTLE} s",
+            settings.settle
+        )));
     }
     Ok(())
 }
 
-/// Answers Protocol 2.0 on `port` as `robot`'s servos until `stop` is set (checked at
-/// least every read timeout of the port). `ready` is called once the robot has settled and
-/// requests are answered; `log`, if given, is updated after every request.
+/// Refuses a silent servo that is not on the bus.
+fn check_silent_servo(settings: &EmulatorSettings, ids: &[u8]) -> Result<(), EmulatorError> {
+    match settings.faults.silent_servo {
+        Some(id) if !ids.contains(&id) => {
+            let list: Vec<String> = ids.iter().map(|i| i.to_string()).collect();
+            Err(setting(format!(
+                "silent servo {id}: no servo has that ID (the servos are {})",
+                list.join(", ")
+            )))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// How much of the device's record the shared log already has.
+#[derive(Default)]
+struct Synced {
+    state_reads: usize,
+    goal_writes: usize,
+    watchdog_stops: usize,
+}
+
+/// Brings `shared` up to `own`, appending only what is new.
+fn sync(own: &EmulatorLog, shared: &Mutex<EmulatorLog>, done: &mut Synced) {
+    let mut log = shared
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    log.state_reads
+        .extend_from_slice(&own.state_reads[done.state_reads.min(own.state_reads.len())..]);
+    let from = done.goal_writes.min(own.goal_writes.len());
+    log.goal_writes.extend_from_slice(&own.goal_writes[from..]);
+    log.read_before_write
+        .extend_from_slice(&own.read_before_write[from.min(own.read_before_write.len())..]);
+    log.watchdog_stops.extend_from_slice(
+        &own.watchdog_stops[done.watchdog_stops.min(own.watchdog_stops.len())..],
+    );
+    log.requests = own.requests;
+    log.fates = own.fates;
+    log.stale_packets = own.stale_packets;
+    log.torque.clone_from(&own.torque);
+    *done = Synced {
+        state_reads: own.state_reads.len(),
+        goal_writes: own.goal_writes.len(),
+        watchdog_stops: own.watchdog_stops.len(),
+    };
+}
+
+/// Answers Protocol 2.0 on `port` as `robot`'s servos until `stop` is set. `stop` is
+/// checked at least every read timeout of the port and every 10 ms while a reply waits
+/// for its time. `ready` is called once the robot has settled and requests are answered;
+/// `log`, if given, is kept up to date as requests are executed.
 pub fn serve<P: Read + Write>(
     robot: &Robot,
     settings: &EmulatorSettings,
@@ -230,28 +329,43 @@ pub fn serve<P: Read + Write>(
 ) -> Result<EmulatorLog, EmulatorError> {
     check(settings)?;
     let map = TendonMap::new(robot)?;
+    check_silent_servo(settings, &map.hardware().servo_ids())?;
     let model = Model::new(robot.clone())?;
     let mut plant = Plant::new(&model, Tolerances::default())?;
     plant.advance(settings.settle)?;
-    let baud_register = softcbf_codegen::hardware::baud_register(settings.baud).unwrap_or(3);
-    let delay_register = (settings.return_delay.as_micros() / 2).min(254) as u8;
-    let mut servos = Servos::new(map, plant, baud_register, delay_register);
-    let mut own = EmulatorLog {
-        torque: vec![false; servos.ids().len()],
-        ..EmulatorLog::default()
-    };
-    let mut decoder = Decoder::default();
-    let mut packet = PacketBuf::default();
-    let mut replies = Vec::new();
-    let mut out = Vec::with_capacity(256);
-    let mut draws = Draws(settings.faults.seed);
+    let mut device = Device::new(map, plant, settings, Instant::now())?;
     ready();
-    let start = Instant::now();
-    let mut bus_free = start;
+    let mut buf = [0u8; 1024];
+    let mut synced = Synced::default();
+    let mut seen = u64::MAX;
     while !stop.load(Ordering::Relaxed) {
-        match decoder.read_from(port) {
+        let now = Instant::now();
+        device.poll(now)?;
+        // The record first: whoever reads a reply finds its request logged.
+        if let Some(shared) = log {
+            let own = device.log();
+            let changed = own.requests
+                + own.fates.iter().sum::<u64>()
+                + own.stale_packets
+                + own.watchdog_stops.len() as u64;
+            if changed != seen {
+                sync(own, shared, &mut synced);
+                seen = changed;
+            }
+        }
+        while let Some(out) = device.take_due(now) {
+            port.write_all(&out.bytes)?;
+            port.flush()?;
+        }
+        // A request to finish or a reply to send keeps the loop off the port (a read
+        // could block past it); otherwise wait for bytes.
+        if let Some(due) = device.next_due() {
+            wait_until_or_stop(due, stop);
+            continue;
+        }
+        match port.read(&mut buf) {
             Ok(0) => std::thread::sleep(Duration::from_millis(1)),
-            Ok(_) => {}
+            Ok(n) => device.receive(&buf[..n], Instant::now())?,
             Err(e)
                 if matches!(
                     e.kind(),
@@ -259,123 +373,9 @@ pub fn serve<P: Read + Write>(
                 ) => {}
             Err(e) => return Err(e.into()),
         }
-        let arrival = Instant::now();
-        loop {
-            match decoder.next_packet() {
-                None => break,
-                Some(Err(_)) => continue, // a servo ignores corrupt packets
-                Some(Ok(p)) => packet.copy_from(&p),
-            }
-            let request_end =
-                arrival.max(bus_free) + wire_time(10 + packet.params.len(), settings.baud);
-            let t = settings.settle + (request_end - start).as_secs_f64();
-            replies.clear();
-            servos.execute(&packet.as_ref(), t, &mut replies)?;
-            own.requests += 1;
-            let mut cursor = request_end;
-            let mut states = Vec::new();
-            for reply in &replies {
-                let fate = fate_of(reply, &settings.faults, request_end - start, &mut draws);
-                own.fates[fate as usize] += 1;
-                if let Some(state) = state_block(&packet, &reply.params) {
-                    states.push(StateReply {
-                        id: reply.id,
-                        fate,
-                        state,
-                    });
-                }
-                if matches!(fate, ReplyFate::Dropped | ReplyFate::Silent) {
-                    continue;
-                }
-                out.clear();
-                encode_status(reply.id, reply.error, &reply.params, &mut out)
-                    .expect("servo IDs are valid");
-                if fate == ReplyFate::Corrupted {
-                    let last = out.len() - 1;
-                    out[last] ^= 0x5A;
-                }
-                cursor += settings.return_delay + wire_time(out.len(), settings.baud);
-                if fate == ReplyFate::Delayed {
-                    cursor += settings.faults.delay;
-                }
-                wait_until(cursor);
-                port.write_all(&out)?;
-                port.flush()?;
-            }
-            bus_free = cursor;
-            if let Some(log) = log {
-                let mut shared = log.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-                record(&mut shared, &packet, t, states.clone(), &servos);
-                shared.requests = own.requests;
-                shared.fates = own.fates;
-            }
-            record(&mut own, &packet, t, states, &servos);
-        }
     }
-    Ok(own)
-}
-
-/// The state block inside a sync-read reply that covers it (the loop reads it with 0–3
-/// bytes before it).
-fn state_block(packet: &PacketBuf, params: &[u8]) -> Option<ServoState> {
-    if packet.instruction != Instruction::SyncRead {
-        return None;
+    if let Some(shared) = log {
+        sync(device.log(), shared, &mut synced);
     }
-    let (addr, len, _) = crate::protocol::parse_sync_read(&packet.params)?;
-    let skip = table::STATE_ADDRESS.checked_sub(addr)?;
-    (addr + len == table::STATE_ADDRESS + table::STATE_LENGTH && params.len() == usize::from(len))
-        .then(|| ServoState::from_bytes(&params[usize::from(skip)..]))
-}
-
-fn fate_of(reply: &Reply, faults: &Faults, since_start: Duration, draws: &mut Draws) -> ReplyFate {
-    if faults.silent_servo == Some(reply.id) && since_start >= faults.silent_after {
-        return ReplyFate::Silent;
-    }
-    // Draw all three every time so one fault's setting does not shift another's sequence.
-    let (drop, corrupt, delay) = (draws.next(), draws.next(), draws.next());
-    if drop < faults.drop {
-        ReplyFate::Dropped
-    } else if corrupt < faults.corrupt {
-        ReplyFate::Corrupted
-    } else if delay < faults.delay_fraction && !faults.delay.is_zero() {
-        ReplyFate::Delayed
-    } else {
-        ReplyFate::Sent
-    }
-}
-
-fn record(
-    log: &mut EmulatorLog,
-    packet: &PacketBuf,
-    t: f64,
-    states: Vec<StateReply>,
-    servos: &Servos<'_>,
-) {
-    if !states.is_empty() {
-        log.state_reads.push((t, states));
-    }
-    let goal = |addr: u16| addr == table::GOAL_CURRENT;
-    let items: Vec<(u8, i16)> = match packet.instruction {
-        Instruction::SyncWrite => match parse_sync_write(&packet.params) {
-            Some((addr, 2, items)) if goal(addr) => items
-                .map(|(id, d)| (id, i16::from_le_bytes([d[0], d[1]])))
-                .collect(),
-            _ => Vec::new(),
-        },
-        Instruction::Write => match parse_write(&packet.params) {
-            Some((addr, d)) if goal(addr) && d.len() == 2 => {
-                vec![(packet.id, i16::from_le_bytes([d[0], d[1]]))]
-            }
-            _ => Vec::new(),
-        },
-        _ => Vec::new(),
-    };
-    if !items.is_empty() {
-        log.goal_writes.push((t, items));
-        log.read_before_write
-            .push(log.state_reads.len().checked_sub(1));
-    }
-    log.torque.clear();
-    log.torque
-        .extend((0..servos.ids().len()).map(|s| servos.torque_enabled(s)));
+    Ok(device.into_log())
 }
