@@ -14,7 +14,7 @@
 use std::f64::consts::PI;
 use std::fmt;
 
-use crate::robot::Robot;
+use crate::robot::{Module, Robot};
 
 /// What a number must be: finite, within `[min, max]` (or `(min, max]`), perhaps an
 /// integer. `unit` is for messages.
@@ -55,6 +55,16 @@ impl Limit {
         }
     }
 
+    /// The same range mirrored to negative values, `-max ≤ value ≤ max` (for entries whose
+    /// sign is free, such as the off-diagonal entries of a gain matrix).
+    pub const fn either_sign(self) -> Limit {
+        Limit {
+            min: -self.max,
+            min_inclusive: true,
+            ..self
+        }
+    }
+
     /// A whole number in `min..=max`.
     pub const fn integer(min: i64, max: i64) -> Limit {
         Limit {
@@ -81,13 +91,13 @@ impl Limit {
         if self.integer {
             return format!("an integer in {}..={}", self.min, self.max);
         }
-        let unit = if self.unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {}", self.unit)
+        let unit = match self.unit {
+            "" => String::new(),
+            "°" => "°".to_string(),
+            unit => format!(" {unit}"),
         };
         let low = if self.min_inclusive { "≥" } else { ">" };
-        format!("{low} {} and ≤ {}{unit}", self.min, self.max)
+        format!("{low} {} and ≤ {}{unit}", short(self.min), short(self.max))
     }
 
     /// `Ok(value)` if allowed, else the message (without the field's name):
@@ -107,7 +117,11 @@ impl Limit {
 
     /// [`Limit::check`] for an integer setting, returned as `i64`.
     pub fn check_integer(&self, value: i64) -> Result<i64, String> {
-        self.check(value as f64).map(|_| value)
+        if self.contains(value as f64) {
+            Ok(value)
+        } else {
+            Err(format!("must be {}, got {value}", self.describe()))
+        }
     }
 }
 
@@ -120,6 +134,90 @@ pub fn short(x: f64) -> String {
         format!("{x:e}")
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// The robot file: modules, gravity, barrier gains.
+
+/// Number of modules of a robot (`modules = N`): a guard against typos, not a limit of the
+/// model.
+pub const MODULES: Limit = Limit::integer(1, crate::robot::MAX_MODULES as i64);
+/// A length or radius of a module \[m\] (`rest_length`, `tendon_radius`, `corner_radius`,
+/// a tendon's `zero_length`): from a tenth of a millimetre (below, foam and plates are no
+/// longer rigid bodies on a backbone) to 10 m (no soft module is longer).
+pub const LENGTH_M: Limit = Limit::closed(1e-4, 10.0, "m");
+/// Mass lumped in a plate \[kg\]: a milligram to ten tonnes.
+pub const MASS_KG: Limit = Limit::closed(1e-6, 1e4, "kg");
+/// A principal moment of inertia of a plate \[kg·m²\]: from a milligram disc of 0.1 mm
+/// radius (`m r²/8 ≈ 1e-15`) to ten tonnes at ten metres (`m r² = 1e6`).
+pub const INERTIA_KG_M2: Limit = Limit::closed(1e-16, 1e6, "kg·m²");
+/// Offset of a plate's centre of mass along its normal \[m\]: within a module's length.
+pub const COM_OFFSET_M: Limit = Limit::closed(-10.0, 10.0, "m");
+/// A corner or tendon angle \[deg\]: one turn either way covers every direction.
+pub const ANGLE_DEG: Limit = Limit::closed(-360.0, 360.0, "°");
+/// Bending stiffness `κθ` \[N·m/rad\]: soft modules have 0.01–10; 1e4 is a steel rod.
+pub const BENDING_STIFFNESS: Limit = Limit::closed(0.0, 1e4, "N·m/rad");
+/// Axial stiffness `κL` \[N/m\]: soft modules have 10–1e4; 1e7 is a steel spring.
+pub const AXIAL_STIFFNESS: Limit = Limit::closed(0.0, 1e7, "N/m");
+/// Bending damping `βθ` \[N·m·s/rad\]: as the bending stiffness, at most 1e4.
+pub const BENDING_DAMPING: Limit = Limit::closed(0.0, 1e4, "N·m·s/rad");
+/// Axial damping `βL` \[N·s/m\]: an industrial shock absorber has 1e5.
+pub const AXIAL_DAMPING: Limit = Limit::closed(0.0, 1e6, "N·s/m");
+/// Barrier margin of a corner \[m\]: a safety distance of more than a metre between
+/// plates describes no contact.
+pub const MARGIN_M: Limit = Limit::closed(0.0, 1.0, "m");
+/// A component of gravity \[m/s²\]: ten times the Earth's covers every planet and a
+/// centrifuge.
+pub const GRAVITY_M_S2: Limit = Limit::closed(-100.0, 100.0, "m/s²");
+/// HOCBF class-K gains `p1`, `p2` \[1/s\] (robot `[barrier]`, scenario `[gains]`): above
+/// 1e4 1/s a barrier would be corrected within 0.1 ms, faster than any actuator.
+pub const BARRIER_GAIN_PER_S: Limit = Limit::above(0.0, 1e4, "1/s");
+
+// ---------------------------------------------------------------------------------------
+// The robot file's `[hardware]` table (with RETRIES, MAX_CONSECUTIVE_ERRORS,
+// REPLY_TIMEOUT_MS, SERVO_ID and the baud rates below).
+
+/// Time constant of the velocity filter \[ms\]: longer than a second filters out the motion.
+pub const VELOCITY_FILTER_MS: Limit = Limit::above(0.0, 1000.0, "ms");
+/// Model number a servo answers to a ping (a 16-bit register).
+pub const MODEL_NUMBER: Limit = Limit::integer(0, 65_535);
+/// Current unit of the Goal/Present Current registers \[mA\] (X-series: 1 or 2.69).
+pub const CURRENT_UNIT_MA: Limit = Limit::closed(1e-3, 100.0, "mA");
+/// Position unit of Present Position \[deg\] (X-series: 360°/4096).
+pub const POSITION_UNIT_DEG: Limit = Limit::closed(1e-4, 360.0, "°");
+/// Velocity unit of Present Velocity \[rev/min\] (X-series: 0.229).
+pub const VELOCITY_UNIT_RPM: Limit = Limit::closed(1e-4, 100.0, "rev/min");
+/// Servo angle in the calibration pose \[deg\]: a hundred turns either way.
+pub const ZERO_ANGLE_DEG: Limit = Limit::closed(-36_000.0, 36_000.0, "°");
+/// Radius of the pulley a tendon winds on \[m\]: 0.1 mm to 1 m.
+pub const PULLEY_RADIUS_M: Limit = Limit::closed(1e-4, 1.0, "m");
+/// Tension per unit of motor current \[N/mA\] (XM430 on a 45 mm pulley: 0.04).
+pub const ACTUATOR_GAIN_N_PER_MA: Limit = Limit::closed(1e-6, 100.0, "N/mA");
+/// A tendon tension limit \[N\]: up to 100 kN, ten tonnes on one cable.
+pub const TENSION_N: Limit = Limit::closed(0.0, 1e5, "N");
+
+// ---------------------------------------------------------------------------------------
+// The scenario file (with DURATION_S below).
+
+/// Control period of a simulation \[s\]: 1 µs (1 MHz) to 1 s (the slowest loop,
+/// [`RATE_HZ`]).
+pub const CONTROL_PERIOD_S: Limit = Limit::closed(1e-6, 1.0, "s");
+/// Time of a waypoint \[s\]: within the longest run ([`DURATION_S`]).
+pub const WAYPOINT_TIME_S: Limit = Limit::closed(0.0, 1e6, "s");
+/// A diagonal entry (or the scalar) of `K_P` \[N/m\]: 1e6 N/m moves a 10 t plate at 1.6 Hz
+/// and a milligram one far beyond any servo; off-diagonal entries lie within `±max`.
+pub const KP_N_PER_M: Limit = Limit::closed(0.0, 1e6, "N/m");
+/// A diagonal entry (or the scalar) of `K_D` \[N·s/m\]; off-diagonal entries within `±max`.
+pub const KD_N_S_PER_M: Limit = Limit::closed(0.0, 1e6, "N·s/m");
+/// Relative tolerance of the plant integration: above 1 nothing is controlled; below
+/// 1e-12 it asks for more than double precision can give.
+pub const RTOL: Limit = Limit::closed(1e-12, 1.0, "");
+/// Absolute tolerance of the plant integration \[m, m/s\]: a femtometre to a metre.
+pub const ATOL: Limit = Limit::closed(1e-15, 1.0, "");
+/// First step of the plant integration \[s\]: from the integrator's smallest step
+/// (1e-12 s) to the longest control period.
+pub const H_INITIAL_S: Limit = Limit::closed(1e-12, 1.0, "s");
+/// Step attempts of the plant integration within one tick.
+pub const MAX_STEPS: Limit = Limit::integer(1, 10_000_000);
 
 // ---------------------------------------------------------------------------------------
 // The hardware loop (`softcbf run`).
@@ -229,6 +327,21 @@ pub enum StateProblem {
     },
 }
 
+impl StateProblem {
+    /// The entry (from 1) the problem concerns, `None` for a wrong length; for a bend, the
+    /// module's `Δx`.
+    pub fn entry(&self) -> Option<usize> {
+        match *self {
+            StateProblem::Length { .. } => None,
+            StateProblem::NonFinite { index, .. } | StateProblem::Speed { index, .. } => {
+                Some(index)
+            }
+            StateProblem::Bend { module, .. } => Some((3 * module).saturating_sub(2)),
+            StateProblem::Elongation { module, .. } => Some(3 * module),
+        }
+    }
+}
+
 impl fmt::Display for StateProblem {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
@@ -263,7 +376,13 @@ impl fmt::Display for StateProblem {
 /// The first problem of coordinates `q` of `robot` (length, finiteness, bend, elongation),
 /// or `None` when `q` lies in the model's domain. Allocates nothing.
 pub fn coordinates_problem(robot: &Robot, q: &[f64]) -> Option<StateProblem> {
-    let expected = 3 * robot.modules.len();
+    modules_coordinates_problem(&robot.modules, q)
+}
+
+/// [`coordinates_problem`] for a robot given by its modules (base first), for checks made
+/// while the robot itself is still being built.
+pub fn modules_coordinates_problem(modules: &[Module], q: &[f64]) -> Option<StateProblem> {
+    let expected = 3 * modules.len();
     if q.len() != expected {
         return Some(StateProblem::Length {
             got: q.len(),
@@ -276,7 +395,7 @@ pub fn coordinates_problem(robot: &Robot, q: &[f64]) -> Option<StateProblem> {
             value: q[index],
         });
     }
-    for (i, (module, q)) in robot.modules.iter().zip(q.chunks_exact(3)).enumerate() {
+    for (i, (module, q)) in modules.iter().zip(q.chunks_exact(3)).enumerate() {
         let max = MAX_BEND_RAD * module.tendon_radius;
         let bend = q[0].hypot(q[1]);
         if bend > max {
