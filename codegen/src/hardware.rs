@@ -734,7 +734,7 @@ mod tests {
         assert_eq!(hw.modules[0].pulley_radius, 1.0);
     }
 
-    /// The set point lies in the state domain of the robot: bends of at most two turns,
+    /// The set point lies in the state domain of the robot: bends of at most 1.5π,
     /// elongations of at most ten rest lengths (the default module: `d` = 0.04 m,
     /// `L0` = 0.1 m).
     #[test]
@@ -757,13 +757,14 @@ mod tests {
             "hardware.set_point",
             "entry 2 must be a finite number, got inf",
         );
-        // 4π·0.04 m = 0.5027 m of bend is allowed, 0.51 m is not.
-        assert!(parse(&format!("set_point = [0.3, 0.4, 1.0]\n{MODULE}")).is_ok());
+        // 1.5π·0.04 m = 0.1885 m of bend is allowed (√(0.108² + 0.144²) = 0.18), 0.192 m
+        // is not.
+        assert!(parse(&format!("set_point = [0.108, 0.144, 1.0]\n{MODULE}")).is_ok());
         assert_invalid(
-            &format!("set_point = [0.3, 0.41, 0]\n{MODULE}"),
+            &format!("set_point = [0.12, 0.15, 0]\n{MODULE}"),
             3,
             "hardware.set_point",
-            "more than two full turns",
+            "more than three quarters of a turn",
         );
     }
 

@@ -5,11 +5,12 @@
 //! builds the message when it is not; the file checker (`toml_file`) adds the file, line
 //! and field, the command line adds the option's name. The ranges are physical: a bound
 //! says where a value stops describing a robot (a reply that takes more than a second, a
-//! bend of more than two turns), not where the arithmetic happens to break, and every
-//! value inside them leaves the model's arithmetic finite (tested).
+//! module longer than 10 m), not where the arithmetic happens to break, and every value
+//! inside them leaves the model's arithmetic finite (`tests/tests/descriptions.rs`).
 //!
 //! The state domain ([`state_problem`]) bounds `q` and `q̇` the same way: a bend of at
-//! most two full turns, an elongation within ten rest lengths, speeds within 100 m/s.
+//! most three quarters of a turn, an elongation within ten rest lengths, speeds within
+//! 100 m/s.
 
 use std::f64::consts::PI;
 use std::fmt;
@@ -275,8 +276,12 @@ pub const SILENT_AFTER_S: Limit = Limit::closed(0.0, 1e6, "s");
 // ---------------------------------------------------------------------------------------
 // The state domain.
 
-/// Largest bend `θ = √(Δx² + Δy²)/d` of a segment \[rad\]: two full turns.
-pub const MAX_BEND_RAD: f64 = 4.0 * PI;
+/// Largest bend `θ = √(Δx² + Δy²)/d` of a segment \[rad\]: three quarters of a turn
+/// (270°). At a full turn the plate comes back onto its base whatever the bend's direction
+/// and the segment's length, so `M(q)` is singular there (its smallest Cholesky pivot
+/// falls as `(2π − θ)²`: 4e-3 of the largest at 1.5π, 2e-6 at 1.99π for the paper robot);
+/// no module bends that far without its plates meeting.
+pub const MAX_BEND_RAD: f64 = 1.5 * PI;
 /// Largest `|δL|` as a multiple of the segment's rest length `L0`.
 pub const MAX_ELONGATION_RATIO: f64 = 10.0;
 /// Largest `|q̇|` entry \[m/s\]: far beyond any soft robot, small enough that every product
@@ -354,8 +359,8 @@ impl fmt::Display for StateProblem {
             }
             StateProblem::Bend { module, theta, max } => write!(
                 f,
-                "module {module} bends by θ = {theta:.4e} rad, more than two full turns \
-                 (4π rad): √(Δx² + Δy²) of entries {}, {} must be ≤ {max:.4} m",
+                "module {module} bends by θ = {theta:.4e} rad, more than three quarters of a \
+                 turn (1.5π rad): √(Δx² + Δy²) of entries {}, {} must be ≤ {max:.4} m",
                 3 * module - 2,
                 3 * module - 1
             ),

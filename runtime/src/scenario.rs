@@ -740,7 +740,7 @@ mod tests {
     }
 
     /// Set points, waypoints and the initial state lie in the state domain: bends of at most
-    /// 4π·0.04 m = 0.503 m, elongations of at most 1 m, speeds of at most 100 m/s.
+    /// 1.5π·0.04 m = 0.1885 m, elongations of at most 1 m, speeds of at most 100 m/s.
     #[test]
     fn states_lie_in_the_state_domain() {
         refused(
@@ -752,7 +752,7 @@ mod tests {
             "x.toml:3: field `reference.set_point`: entry 6 (δL of module 2)",
         );
         refused(
-            &format!("{REFERENCE}[initial]\nq = [0, 0, 0, 0.36, 0.36, 0]\n"),
+            &format!("{REFERENCE}[initial]\nq = [0, 0, 0, 0.14, 0.14, 0]\n"),
             "x.toml:4: field `initial.q`: module 2 bends",
         );
         refused(
@@ -764,10 +764,10 @@ mod tests {
             "x.toml:3: field `reference.waypoints[2].q`: entry 3 (δL of module 1)",
         );
         let scenario = resolve(&format!(
-            "{REFERENCE}[initial]\nq = [0.3, 0.4, 1, 0, 0, -1]\nqd = [100, -100, 0, 0, 0, 0]\n"
+            "{REFERENCE}[initial]\nq = [0.108, 0.144, 1, 0, 0, -1]\nqd = [100, -100, 0, 0, 0, 0]\n"
         ))
         .unwrap();
-        assert_eq!(scenario.initial_q, [0.3, 0.4, 1.0, 0.0, 0.0, -1.0]);
+        assert_eq!(scenario.initial_q, [0.108, 0.144, 1.0, 0.0, 0.0, -1.0]);
     }
 
     #[test]
