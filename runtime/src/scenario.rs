@@ -450,11 +450,12 @@ impl ScenarioFile {
                     let t =
                         c.within(&waypoint.t, &format!("{field}.t"), &limits::WAYPOINT_TIME_S)?;
                     if let Some((previous, _)) = out.last() {
+                        let (now, before) = (short(t), short(*previous));
                         let problem = if t <= *previous {
-                            Some(format!("times must increase: {t} s follows {previous} s"))
+                            Some(format!("times must increase: {now} s follows {before} s"))
                         } else if t - previous < control_period * (1.0 - SPACING_TOLERANCE) {
                             Some(format!(
-                                "{t} s is {:.2e} s after waypoint {k} ({previous} s); \
+                                "{now} s is {:.2e} s after waypoint {k} ({before} s); \
                                  consecutive waypoints must be at least one control period \
                                  apart ({control_period} s)",
                                 t - previous
@@ -856,5 +857,13 @@ mod tests {
         );
         // 0.3 − 0.2 rounds to 0.09999999999999998: one period, written in decimals.
         assert!(resolve(&waypoints("0.3")).is_ok());
+        // Waypoints at 0 and 1e-300 s gave a NaN tick.
+        refused(
+            "[reference]\nwaypoints = [{ t = 0, q = [0, 0, 0, 0, 0, 0] },\n  \
+             { t = 1e-300, q = [0.01, 0, 0, 0, 0, 0] }]\n",
+            "x.toml:3: field `reference.waypoints[2].t`: 1e-300 s is 1.00e-300 s after \
+             waypoint 1 (0 s); consecutive waypoints must be at least one control period \
+             apart (0.001 s)",
+        );
     }
 }
