@@ -495,6 +495,96 @@ mod tests {
         }
     }
 
+    /// Every range is a proper interval with finite ends (integer ranges with whole ends),
+    /// and its description is what the READMEs print.
+    #[test]
+    fn every_range_is_a_proper_interval_described_in_short_numbers() {
+        let all = [
+            RATE_HZ,
+            DURATION_S,
+            BARRIER_THRESHOLD_M,
+            MAX_CONSECUTIVE_ERRORS,
+            RETRIES,
+            REPLY_TIMEOUT_MS,
+            SERVO_ID,
+            BUS_WATCHDOG_MS,
+            DELAY_MS,
+            FRACTION,
+            RETURN_DELAY_US,
+            SILENT_AFTER_S,
+            MODULES,
+            LENGTH_M,
+            MASS_KG,
+            INERTIA_KG_M2,
+            COM_OFFSET_M,
+            ANGLE_DEG,
+            BENDING_STIFFNESS,
+            AXIAL_STIFFNESS,
+            BENDING_DAMPING,
+            AXIAL_DAMPING,
+            MARGIN_M,
+            GRAVITY_M_S2,
+            BARRIER_GAIN_PER_S,
+            VELOCITY_FILTER_MS,
+            MODEL_NUMBER,
+            CURRENT_UNIT_MA,
+            POSITION_UNIT_DEG,
+            VELOCITY_UNIT_RPM,
+            ZERO_ANGLE_DEG,
+            PULLEY_RADIUS_M,
+            ACTUATOR_GAIN_N_PER_MA,
+            TENSION_N,
+            CONTROL_PERIOD_S,
+            WAYPOINT_TIME_S,
+            KP_N_PER_M,
+            KD_N_S_PER_M,
+            RTOL,
+            ATOL,
+            H_INITIAL_S,
+            MAX_STEPS,
+        ];
+        for limit in all {
+            assert!(limit.min.is_finite() && limit.max.is_finite() && limit.min < limit.max);
+            assert!(limit.contains(limit.max), "{limit:?}");
+            assert_eq!(limit.contains(limit.min), limit.min_inclusive, "{limit:?}");
+            if limit.integer {
+                assert_eq!((limit.min.fract(), limit.max.fract()), (0.0, 0.0));
+            }
+        }
+        assert_eq!(INERTIA_KG_M2.describe(), "≥ 1e-16 and ≤ 1000000 kg·m²");
+        assert_eq!(ANGLE_DEG.describe(), "≥ -360 and ≤ 360°");
+        assert_eq!(AXIAL_STIFFNESS.describe(), "≥ 0 and ≤ 1e7 N/m");
+        assert_eq!(RTOL.describe(), "≥ 1e-12 and ≤ 1");
+        assert_eq!(
+            KP_N_PER_M.either_sign().check(-1.5e6).unwrap_err(),
+            "must be ≥ -1000000 and ≤ 1000000 N/m, got -1500000"
+        );
+        assert_eq!(KP_N_PER_M.either_sign().check(-1e6), Ok(-1e6));
+        assert_eq!(
+            MODULES.check_integer(i64::MIN).unwrap_err(),
+            "must be an integer in 1..=1000, got -9223372036854775808"
+        );
+    }
+
+    #[test]
+    fn state_problems_point_at_their_entry() {
+        let robot = Robot::paper_sim();
+        let bend = MAX_BEND_RAD * 0.04;
+        let q = [0.0, 0.0, 0.0, 0.0, 1.01 * bend, 0.0];
+        let problem = coordinates_problem(&robot, &q).unwrap();
+        // The bend of module 2 is reported at its Δx, entry 4.
+        assert_eq!(problem.entry(), Some(4));
+        assert_eq!(
+            modules_coordinates_problem(&robot.modules, &q),
+            Some(problem)
+        );
+        let q = [0.0, 0.0, 1.5, 0.0, 0.0, 0.0];
+        assert_eq!(coordinates_problem(&robot, &q).unwrap().entry(), Some(3));
+        let qd = [0.0, 0.0, 0.0, 0.0, f64::NAN, 0.0];
+        assert_eq!(velocities_problem(&robot, &qd).unwrap().entry(), Some(5));
+        assert_eq!(coordinates_problem(&robot, &[0.0]).unwrap().entry(), None);
+    }
+
     #[test]
     fn the_state_domain_bounds_bend_elongation_and_speed() {
         let robot = Robot::paper_sim();

@@ -1,5 +1,5 @@
-//! Checked TOML description files (robots, scenarios, hardware): the error type that names
-//! the file, line and field, and the reading, range checks and span lookups every parser shares.
+//! Checked TOML description files (robots, scenarios, hardware): the reading, range checks
+//! and span lookups every parser shares, and the error that names the file, line and field.
 
 use std::io::Read;
 use std::ops::Range;
