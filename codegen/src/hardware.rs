@@ -10,8 +10,9 @@ use std::ops::Range;
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::limits::{self, Limit};
 use crate::robot::{Module, Routing};
-use crate::toml_file::{Checker, FileError, Rule};
+use crate::toml_file::{Checker, FileError};
 
 /// Where the controller takes `q̇` from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -148,19 +149,6 @@ struct RawModuleHardware {
 // Checking.
 
 impl Checker<'_> {
-    /// An integer in `[min, max]`.
-    fn integer(&self, v: &Spanned<i64>, field: &str, min: i64, max: i64) -> Result<i64, FileError> {
-        let value = *v.get_ref();
-        if value < min || value > max {
-            return Err(self.invalid(
-                &v.span(),
-                field,
-                format!("must be an integer in {min}..={max}, got {value}"),
-            ));
-        }
-        Ok(value)
-    }
-
     /// Checks the `[hardware]` table against the robot's modules (`table` spans it).
     pub(crate) fn hardware(
         &self,
@@ -170,71 +158,69 @@ impl Checker<'_> {
         routing: Routing,
     ) -> Result<Hardware, FileError> {
         let baud = match &raw.baud {
-            Some(v) => {
-                let value = self.integer(v, "hardware.baud", 1, i64::from(u32::MAX))? as u32;
-                if !SUPPORTED_BAUDS.contains(&value) {
-                    return Err(self.invalid(
-                        &v.span(),
-                        "hardware.baud",
-                        format!("{value} bit/s is not an X-series baud rate; use one of {SUPPORTED_BAUDS:?}"),
-                    ));
-                }
-                value
-            }
+            Some(v) => limits::check_baud(*v.get_ref())
+                .map_err(|message| self.invalid(&v.span(), "hardware.baud", message))?,
             None => defaults::BAUD,
         };
-        let positive_ms = |v: &Num, field: &str, default: f64| -> Result<f64, FileError> {
-            Ok(match v {
-                Some(v) => self.number(v, field, Rule::Positive, "ms")?,
-                None => default,
-            } / 1000.0)
+        let number = |v: &Num, field: &str, limit: &Limit, default: f64| {
+            v.as_ref()
+                .map_or(Ok(default), |v| self.within(v, field, limit))
         };
-        let reply_timeout = positive_ms(
+        let reply_timeout = number(
             &raw.reply_timeout_ms,
             "hardware.reply_timeout_ms",
+            &limits::REPLY_TIMEOUT_MS,
             defaults::REPLY_TIMEOUT_MS,
-        )?;
-        let velocity_filter = positive_ms(
+        )? / 1000.0;
+        let velocity_filter = number(
             &raw.velocity_filter_ms,
             "hardware.velocity_filter_ms",
+            &limits::VELOCITY_FILTER_MS,
             defaults::VELOCITY_FILTER_MS,
-        )?;
-        let count = |v: &Option<Spanned<i64>>, field: &str, min: i64, default: u32| {
+        )? / 1000.0;
+        // The limits fit the types: counts ≤ 1000, model numbers ≤ 65535 (tested).
+        let count = |v: &Option<Spanned<i64>>, field: &str, limit: &Limit, default: u32| {
             v.as_ref().map_or(Ok(default), |v| {
-                Ok(self.integer(v, field, min, 1000)? as u32)
+                Ok(self
+                    .integer_within(v, field, limit)?
+                    .clamp(0, i64::from(u32::MAX)) as u32)
             })
         };
-        let retries = count(&raw.retries, "hardware.retries", 0, defaults::RETRIES)?;
+        let retries = count(
+            &raw.retries,
+            "hardware.retries",
+            &limits::RETRIES,
+            defaults::RETRIES,
+        )?;
         let max_consecutive_errors = count(
             &raw.max_consecutive_errors,
             "hardware.max_consecutive_errors",
-            1,
+            &limits::MAX_CONSECUTIVE_ERRORS,
             defaults::MAX_CONSECUTIVE_ERRORS,
         )?;
-        let model_number = match &raw.model_number {
-            Some(v) => self.integer(v, "hardware.model_number", 0, 65535)? as u16,
-            None => defaults::MODEL_NUMBER,
-        };
-        let unit = |v: &Num, field: &str, unit: &str, default: f64| {
-            v.as_ref()
-                .map_or(Ok(default), |v| self.number(v, field, Rule::Positive, unit))
-        };
-        let current_unit = unit(
+        let model_number = count(
+            &raw.model_number,
+            "hardware.model_number",
+            &limits::MODEL_NUMBER,
+            u32::from(defaults::MODEL_NUMBER),
+        )?
+        .min(u32::from(u16::MAX)) as u16;
+        let current_unit = number(
             &raw.current_unit_ma,
             "hardware.current_unit_ma",
-            "mA",
+            &limits::CURRENT_UNIT_MA,
             defaults::CURRENT_UNIT_MA,
         )?;
-        let position_unit = unit(
+        let position_unit = number(
             &raw.position_unit_deg,
             "hardware.position_unit_deg",
-            "°",
+            &limits::POSITION_UNIT_DEG,
             defaults::POSITION_UNIT_DEG,
         )?;
-        let velocity_unit = unit(
+        let velocity_unit = number(
             &raw.velocity_unit_rpm,
             "hardware.velocity_unit_rpm",
-            "rev/min",
+            &limits::VELOCITY_UNIT_RPM,
             defaults::VELOCITY_UNIT_RPM,
         )?;
         if let Some(mode) = &raw.operating_mode
@@ -253,7 +239,7 @@ impl Checker<'_> {
         let nq = 3 * modules.len();
         let set_point = match &raw.set_point {
             Some(v) => {
-                let values = self.list(v.get_ref(), "hardware.set_point", Rule::Finite, "m")?;
+                let values = self.finite_list(v.get_ref(), "hardware.set_point")?;
                 if values.len() != nq {
                     return Err(self.invalid(
                         &v.span(),
@@ -264,6 +250,8 @@ impl Checker<'_> {
                         ),
                     ));
                 }
+                let problem = limits::modules_coordinates_problem(modules, &values);
+                self.state(problem, v, "hardware.set_point")?;
                 values
             }
             None => vec![0.0; nq],
@@ -367,19 +355,18 @@ impl Checker<'_> {
         three_of(ids.len(), &raw.servo_ids.span(), "servo_ids", "servo IDs")?;
         let mut servo_ids = [0u8; 3];
         for (slot, id) in servo_ids.iter_mut().zip(ids) {
-            *slot = self.integer(id, &field("servo_ids"), 0, 252)? as u8;
+            let id = self.integer_within(id, &field("servo_ids"), &limits::SERVO_ID)?;
+            *slot = u8::try_from(id).unwrap_or(u8::MAX);
         }
-        let pulley_radius = self.number(
+        let pulley_radius = self.within(
             &raw.pulley_radius,
             &field("pulley_radius"),
-            Rule::Positive,
-            "m",
+            &limits::PULLEY_RADIUS_M,
         )?;
-        let angles = self.list(
+        let angles = self.list_within(
             raw.zero_angle_deg.get_ref(),
             &field("zero_angle_deg"),
-            Rule::Finite,
-            "°",
+            &limits::ZERO_ANGLE_DEG,
         )?;
         three_of(
             angles.len(),
@@ -394,7 +381,8 @@ impl Checker<'_> {
         ];
         let zero_lengths = match &raw.zero_length {
             Some(v) => {
-                let values = self.list(v.get_ref(), &field("zero_length"), Rule::Positive, "m")?;
+                let values =
+                    self.list_within(v.get_ref(), &field("zero_length"), &limits::LENGTH_M)?;
                 three_of(values.len(), &v.span(), "zero_length", "lengths")?;
                 [values[0], values[1], values[2]]
             }
@@ -416,25 +404,26 @@ impl Checker<'_> {
                 }
             };
         }
-        let actuator_gain = self.number(
+        let actuator_gain = self.within(
             &raw.actuator_gain,
             &field("actuator_gain"),
-            Rule::Positive,
-            "N/mA",
+            &limits::ACTUATOR_GAIN_N_PER_MA,
         )?;
-        let limits = self.list(
+        let tensions = self.list_within(
             raw.tension_limits.get_ref(),
             &field("tension_limits"),
-            Rule::NonNegative,
-            "N",
+            &limits::TENSION_N,
         )?;
-        if limits.len() != 2 || limits[0] >= limits[1] {
-            return Err(self.invalid(
-                &raw.tension_limits.span(),
-                &field("tension_limits"),
-                format!("needs [f_min, f_max] with 0 ≤ f_min < f_max in N, got {limits:?}"),
-            ));
-        }
+        let [f_min, f_max] = <[f64; 2]>::try_from(tensions.as_slice())
+            .ok()
+            .filter(|[low, high]| low < high)
+            .ok_or_else(|| {
+                self.invalid(
+                    &raw.tension_limits.span(),
+                    &field("tension_limits"),
+                    format!("needs [f_min, f_max] with 0 ≤ f_min < f_max in N, got {tensions:?}"),
+                )
+            })?;
         Ok(ModuleHardware {
             servo_ids,
             pulley_radius,
@@ -442,7 +431,7 @@ impl Checker<'_> {
             zero_lengths,
             directions,
             actuator_gain,
-            tension_limits: [limits[0], limits[1]],
+            tension_limits: [f_min, f_max],
         })
     }
 }
@@ -541,7 +530,14 @@ mod tests {
             &format!("reply_timeout_ms = 0\n{MODULE}"),
             3,
             "hardware.reply_timeout_ms",
-            "> 0 ms",
+            "must be > 0 and ≤ 1000 ms, got 0",
+        );
+        // Accepted before the ranges, and a panic converting to a Duration later.
+        assert_invalid(
+            &format!("reply_timeout_ms = 1e300\n{MODULE}"),
+            3,
+            "hardware.reply_timeout_ms",
+            "must be > 0 and ≤ 1000 ms, got 1e300",
         );
         assert_invalid(
             &format!("max_consecutive_errors = 0\n{MODULE}"),
@@ -587,7 +583,7 @@ mod tests {
             &module("0.02", "-0.02"),
             5,
             "hardware.module[1].pulley_radius",
-            "> 0 m",
+            "must be ≥ 0.0001 and ≤ 1 m, got -0.02",
         );
         assert_invalid(
             &module("[180, 180, 180]", "[180, nan, 180]"),
@@ -605,7 +601,7 @@ mod tests {
             &module("0.08", "0"),
             8,
             "hardware.module[1].actuator_gain",
-            "> 0 N/mA",
+            "must be ≥ 1e-6 and ≤ 100 N/mA, got 0",
         );
         assert_invalid(
             &module("[0.2, 40]", "[40, 0.2]"),
@@ -617,7 +613,19 @@ mod tests {
             &module("[0.2, 40]", "[-1, 40]"),
             9,
             "hardware.module[1].tension_limits",
-            "≥ 0 N",
+            "entry 1 must be ≥ 0 and ≤ 100000 N, got -1",
+        );
+        assert_invalid(
+            &module("[0.2, 40]", "[0.2, 1e300]"),
+            9,
+            "hardware.module[1].tension_limits",
+            "entry 2 must be ≥ 0 and ≤ 100000 N, got 1e300",
+        );
+        assert_invalid(
+            &module("[0.2, 40]", "[0.2, 40, 50]"),
+            9,
+            "hardware.module[1].tension_limits",
+            "f_min < f_max",
         );
         assert_invalid(
             "baud = 57600\n",
@@ -630,6 +638,133 @@ mod tests {
             3,
             "hardware.module",
             "has 2 tables, the robot has 1 modules",
+        );
+    }
+
+    /// Every number of the table outside its physical range, with the message's range
+    /// written out by hand.
+    #[test]
+    fn numbers_lie_in_their_physical_ranges() {
+        for (line, field, fragment) in [
+            (
+                "retries = 1001",
+                "retries",
+                "an integer in 0..=1000, got 1001",
+            ),
+            ("retries = -1", "retries", "got -1"),
+            (
+                "max_consecutive_errors = 9223372036854775807",
+                "max_consecutive_errors",
+                "an integer in 1..=1000, got 9223372036854775807",
+            ),
+            (
+                "velocity_filter_ms = 1e300",
+                "velocity_filter_ms",
+                "must be > 0 and ≤ 1000 ms, got 1e300",
+            ),
+            ("velocity_filter_ms = 0", "velocity_filter_ms", "got 0"),
+            (
+                "model_number = 65536",
+                "model_number",
+                "an integer in 0..=65535, got 65536",
+            ),
+            (
+                "current_unit_ma = 1e-300",
+                "current_unit_ma",
+                "must be ≥ 0.001 and ≤ 100 mA, got 1e-300",
+            ),
+            (
+                "position_unit_deg = 361",
+                "position_unit_deg",
+                "must be ≥ 0.0001 and ≤ 360°, got 361",
+            ),
+            (
+                "velocity_unit_rpm = -nan",
+                "velocity_unit_rpm",
+                "must be a finite number ≥ 0.0001 and ≤ 100 rev/min, got NaN",
+            ),
+            ("baud = -1", "baud", "not an X-series baud rate"),
+        ] {
+            assert_invalid(
+                &format!("{line}\n{MODULE}"),
+                3,
+                &format!("hardware.{field}"),
+                fragment,
+            );
+        }
+        let module = |from: &str, to: &str| MODULE.replace(from, to);
+        assert_invalid(
+            &module("0.02", "1e300"),
+            5,
+            "hardware.module[1].pulley_radius",
+            "≤ 1 m, got 1e300",
+        );
+        assert_invalid(
+            &module("[180, 180, 180]", "[180, 180, 1e300]"),
+            6,
+            "hardware.module[1].zero_angle_deg",
+            "entry 3 must be ≥ -36000 and ≤ 36000°, got 1e300",
+        );
+        assert_invalid(
+            &format!("{MODULE}zero_length = [0.1, 0, 0.1]\n"),
+            10,
+            "hardware.module[1].zero_length",
+            "entry 2 must be ≥ 0.0001 and ≤ 10 m, got 0",
+        );
+        assert_invalid(
+            &module("0.08", "1e308"),
+            8,
+            "hardware.module[1].actuator_gain",
+            "≤ 100 N/mA, got 1e308",
+        );
+        // The bounds themselves are accepted.
+        let hw = parse(&format!(
+            "reply_timeout_ms = 1000\nvelocity_filter_ms = 1000\nretries = 1000\n\
+             max_consecutive_errors = 1000\nmodel_number = 65535\ncurrent_unit_ma = 100\n\
+             position_unit_deg = 360\nvelocity_unit_rpm = 0.0001\n{}",
+            module("[0.2, 40]", "[0, 1e5]").replace("0.02", "1")
+        ))
+        .unwrap()
+        .hardware
+        .unwrap();
+        assert_eq!(hw.reply_timeout, 1.0);
+        assert_eq!((hw.retries, hw.max_consecutive_errors), (1000, 1000));
+        assert_eq!(hw.model_number, 65535);
+        assert_eq!(hw.modules[0].tension_limits, [0.0, 1e5]);
+        assert_eq!(hw.modules[0].pulley_radius, 1.0);
+    }
+
+    /// The set point lies in the state domain of the robot: bends of at most 1.5π,
+    /// elongations of at most ten rest lengths (the default module: `d` = 0.04 m,
+    /// `L0` = 0.1 m).
+    #[test]
+    fn set_point_lies_in_the_state_domain() {
+        assert_invalid(
+            &format!("set_point = [1e308, 0, 0]\n{MODULE}"),
+            3,
+            "hardware.set_point",
+            "module 1 bends by",
+        );
+        assert_invalid(
+            &format!("set_point = [0,\n 0,\n -1.5]\n{MODULE}"),
+            5,
+            "hardware.set_point",
+            "entry 3 (δL of module 1) is -1.5e0 m; |δL| must be ≤ 1 m",
+        );
+        assert_invalid(
+            &format!("set_point = [0, inf, 0]\n{MODULE}"),
+            3,
+            "hardware.set_point",
+            "entry 2 must be a finite number, got inf",
+        );
+        // 1.5π·0.04 m = 0.1885 m of bend is allowed (√(0.108² + 0.144²) = 0.18), 0.192 m
+        // is not.
+        assert!(parse(&format!("set_point = [0.108, 0.144, 1.0]\n{MODULE}")).is_ok());
+        assert_invalid(
+            &format!("set_point = [0.12, 0.15, 0]\n{MODULE}"),
+            3,
+            "hardware.set_point",
+            "more than three quarters of a turn",
         );
     }
 

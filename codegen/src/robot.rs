@@ -17,8 +17,9 @@ use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
 use crate::hardware::{Hardware, RawHardware};
+use crate::limits::{self, Limit};
+use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
-use crate::toml_file::{Checker, Rule};
 
 /// One module: a PCC foam segment and the rigid plate on top of it. SI units.
 #[derive(Clone, Debug, PartialEq)]
@@ -349,7 +350,7 @@ impl Checker<'_> {
         });
         let gravity = match &raw.gravity {
             Some(g) => {
-                let v = self.list(g.get_ref(), "gravity", Rule::Finite, "m/s²")?;
+                let v = self.list_within(g.get_ref(), "gravity", &limits::GRAVITY_M_S2)?;
                 self.three(v, g, "gravity", "components [gx, gy, gz]")?
             }
             None => DEFAULT_GRAVITY,
@@ -366,7 +367,7 @@ impl Checker<'_> {
                 (p2, &barrier.p2, "barrier.p2"),
             ] {
                 if let Some(v) = raw {
-                    *gain = self.number(v, field, Rule::Positive, "1/s")?;
+                    *gain = self.within(v, field, &limits::BARRIER_GAIN_PER_S)?;
                 }
             }
         }
@@ -392,14 +393,9 @@ impl Checker<'_> {
             }
             (Some(tables), None) => tables.get_ref(),
             (None, Some(n)) => {
-                let count = n.get_ref().0;
-                if count < 1 || count > MAX_MODULES as i64 {
-                    return Err(self.invalid(
-                        &n.span(),
-                        "modules",
-                        format!("must be between 1 and {MAX_MODULES}, got {count}"),
-                    ));
-                }
+                let count = limits::MODULES
+                    .check_integer(n.get_ref().0)
+                    .map_err(|message| self.invalid(&n.span(), "modules", message))?;
                 default_tables = (0..count).map(|_| RawModule::default()).collect::<Vec<_>>();
                 &default_tables
             }
@@ -525,11 +521,11 @@ impl Checker<'_> {
     /// Checks every field written in one module table (or `[defaults]`) on its own.
     fn fields(&self, raw: &RawModule, prefix: &str) -> Result<Fields, RobotError> {
         let field = |name: &str| format!("{prefix}.{name}");
-        let number = |v: &RawNumber, name: &str, rule: Rule, unit: &str| {
+        let number = |v: &RawNumber, name: &str, limit: &Limit| {
             v.as_ref()
                 .map(|v| {
                     let field = field(name);
-                    let value = self.number(v, &field, rule, unit)?;
+                    let value = self.within(v, &field, limit)?;
                     Ok(Val {
                         value,
                         span: v.span(),
@@ -552,12 +548,12 @@ impl Checker<'_> {
                 .transpose()
         };
         let fields = Fields {
-            rest_length: number(&raw.rest_length, "rest_length", Rule::Positive, "m")?,
-            tendon_radius: number(&raw.tendon_radius, "tendon_radius", Rule::Positive, "m")?,
-            corner_radius: number(&raw.corner_radius, "corner_radius", Rule::Positive, "m")?,
+            rest_length: number(&raw.rest_length, "rest_length", &limits::LENGTH_M)?,
+            tendon_radius: number(&raw.tendon_radius, "tendon_radius", &limits::LENGTH_M)?,
+            corner_radius: number(&raw.corner_radius, "corner_radius", &limits::LENGTH_M)?,
             corner_angles: angles(&raw.corner_angles_deg, "corner_angles_deg", "corner")?,
             tendon_angles: angles(&raw.tendon_angles_deg, "tendon_angles_deg", "tendon")?,
-            mass: number(&raw.mass, "mass", Rule::Positive, "kg")?,
+            mass: number(&raw.mass, "mass", &limits::MASS_KG)?,
             inertia: raw
                 .inertia
                 .as_ref()
@@ -571,47 +567,38 @@ impl Checker<'_> {
                     })
                 })
                 .transpose()?,
-            com_offset: number(&raw.com_offset, "com_offset", Rule::Finite, "m")?,
+            com_offset: number(&raw.com_offset, "com_offset", &limits::COM_OFFSET_M)?,
             bending_stiffness: number(
                 &raw.bending_stiffness,
                 "bending_stiffness",
-                Rule::NonNegative,
-                "N·m/rad",
+                &limits::BENDING_STIFFNESS,
             )?,
             axial_stiffness: number(
                 &raw.axial_stiffness,
                 "axial_stiffness",
-                Rule::NonNegative,
-                "N/m",
+                &limits::AXIAL_STIFFNESS,
             )?,
             bending_damping: number(
                 &raw.bending_damping,
                 "bending_damping",
-                Rule::NonNegative,
-                "N·m·s/rad",
+                &limits::BENDING_DAMPING,
             )?,
-            axial_damping: number(
-                &raw.axial_damping,
-                "axial_damping",
-                Rule::NonNegative,
-                "N·s/m",
-            )?,
+            axial_damping: number(&raw.axial_damping, "axial_damping", &limits::AXIAL_DAMPING)?,
             margin: raw
                 .margin
                 .as_ref()
                 .map(|v| {
                     let field = field("margin");
                     let value = match v.get_ref() {
-                        RawMargin::All(e) => Margin::All(self.check(
+                        RawMargin::All(e) => Margin::All(self.limited(
                             *e,
                             &v.span(),
                             &field,
                             "",
-                            Rule::NonNegative,
-                            "m",
+                            &limits::MARGIN_M,
                         )?),
                         RawMargin::Each(each) => {
-                            Margin::Each(self.list(each, &field, Rule::NonNegative, "m")?)
+                            Margin::Each(self.list_within(each, &field, &limits::MARGIN_M)?)
                         }
                     };
                     Ok(Val {
@@ -633,7 +620,7 @@ impl Checker<'_> {
         field: &str,
         what: &str,
     ) -> Result<Vec<f64>, RobotError> {
-        let degrees = self.list(v.get_ref(), field, Rule::Finite, "°")?;
+        let degrees = self.list_within(v.get_ref(), field, &limits::ANGLE_DEG)?;
         if degrees.len() < 3 {
             return Err(self.invalid(
                 &v.span(),
@@ -703,7 +690,7 @@ impl Checker<'_> {
 
     /// Principal moments: three, each > 0, and the triangle inequalities of a rigid body.
     fn inertia(&self, v: &Spanned<Vec<Spanned<f64>>>, field: &str) -> Result<[f64; 3], RobotError> {
-        let values = self.list(v.get_ref(), field, Rule::Positive, "kg·m²")?;
+        let values = self.list_within(v.get_ref(), field, &limits::INERTIA_KG_M2)?;
         let moments = self.three(
             values,
             v,
@@ -943,7 +930,7 @@ mod tests {
         let error = parse(text).unwrap_err();
         assert_eq!(
             error.to_string(),
-            "robots/x.toml:5: field `module[2].corner_radius`: must be > 0 m, got -0.05"
+            "robots/x.toml:5: field `module[2].corner_radius`: must be ≥ 0.0001 and ≤ 10 m, got -0.05"
         );
     }
 
@@ -953,7 +940,7 @@ mod tests {
             "[[module]]\nmass = nan\n",
             2,
             "module[1].mass",
-            "must be a finite number, got NaN",
+            "must be a finite number ≥ 1e-6 and ≤ 10000 kg, got NaN",
         );
         assert_invalid(
             "[[module]]\ncom_offset = inf\n",
@@ -965,7 +952,7 @@ mod tests {
             "gravity = [0.0,\n  -inf,\n 0.0]\n[[module]]",
             2,
             "gravity",
-            "entry 2 must be a finite",
+            "entry 2 must be a finite number ≥ -100 and ≤ 100 m/s², got -inf",
         );
         assert_invalid(
             "[[module]]\ncorner_angles_deg = [0, nan, 90]",
@@ -988,62 +975,102 @@ mod tests {
     }
 
     #[test]
-    fn lengths_and_mass_must_be_positive() {
+    fn lengths_and_mass_lie_in_their_physical_ranges() {
         assert_invalid(
             "[[module]]\nrest_length = 0.0",
             2,
             "module[1].rest_length",
-            "must be > 0 m, got 0",
+            "must be ≥ 0.0001 and ≤ 10 m, got 0",
+        );
+        assert_invalid(
+            "[[module]]\nrest_length = 1e300",
+            2,
+            "module[1].rest_length",
+            "must be ≥ 0.0001 and ≤ 10 m, got 1e300",
         );
         assert_invalid(
             "[[module]]\n\ntendon_radius = -0.04",
             3,
             "module[1].tendon_radius",
-            "> 0 m",
+            "≥ 0.0001 and ≤ 10 m",
         );
         assert_invalid(
-            "[[module]]\ncorner_radius = 0",
+            "[[module]]\ntendon_radius = 1e-300",
+            2,
+            "module[1].tendon_radius",
+            "got 1e-300",
+        );
+        assert_invalid(
+            "[[module]]\ncorner_radius = 10.5",
             2,
             "module[1].corner_radius",
-            "> 0 m",
+            "≤ 10 m, got 10.5",
         );
         assert_invalid(
             "[[module]]\nmass = -1",
             2,
             "module[1].mass",
-            "must be > 0 kg, got -1",
+            "must be ≥ 1e-6 and ≤ 10000 kg, got -1",
+        );
+        assert_invalid("[[module]]\nmass = 2e4", 2, "module[1].mass", "got 20000");
+        assert_invalid(
+            "[[module]]\ncom_offset = -11",
+            2,
+            "module[1].com_offset",
+            "must be ≥ -10 and ≤ 10 m, got -11",
+        );
+        // The bounds themselves are accepted.
+        let robot = parse(
+            "[[module]]\nrest_length = 10\ntendon_radius = 0.0001\ncorner_radius = 10\n\
+             mass = 0.000001\ncom_offset = -10",
+        )
+        .unwrap();
+        let m = &robot.modules[0];
+        assert_eq!(
+            (
+                m.rest_length,
+                m.tendon_radius,
+                m.corner_radius,
+                m.mass,
+                m.com_offset
+            ),
+            (10.0, 1e-4, 10.0, 1e-6, -10.0)
         );
     }
 
     #[test]
-    fn stiffness_and_damping_must_be_non_negative() {
+    fn stiffness_and_damping_are_non_negative_and_bounded() {
         let ok = parse(
             "[[module]]\nbending_stiffness = 0\naxial_stiffness = 0\nbending_damping = 0\naxial_damping = 0",
+        );
+        assert!(ok.is_ok());
+        let ok = parse(
+            "[[module]]\nbending_stiffness = 1e4\naxial_stiffness = 1e7\nbending_damping = 1e4\naxial_damping = 1e6",
         );
         assert!(ok.is_ok());
         assert_invalid(
             "[[module]]\nbending_stiffness = -1",
             2,
             "module[1].bending_stiffness",
-            "≥ 0 N·m/rad, got -1",
+            "≥ 0 and ≤ 10000 N·m/rad, got -1",
         );
         assert_invalid(
-            "[[module]]\naxial_stiffness = -1",
+            "[[module]]\naxial_stiffness = 1.5e7",
             2,
             "module[1].axial_stiffness",
-            "≥ 0 N/m",
+            "≥ 0 and ≤ 1e7 N/m, got 1.5e7",
         );
         assert_invalid(
-            "[[module]]\nbending_damping = -1",
+            "[[module]]\nbending_damping = 1e300",
             2,
             "module[1].bending_damping",
-            "≥ 0 N·m·s/rad",
+            "≥ 0 and ≤ 10000 N·m·s/rad, got 1e300",
         );
         assert_invalid(
             "[[module]]\naxial_damping = -0.5",
             2,
             "module[1].axial_damping",
-            "≥ 0 N·s/m, got -0.5",
+            "≥ 0 and ≤ 1000000 N·s/m, got -0.5",
         );
     }
 
@@ -1059,7 +1086,7 @@ mod tests {
             "[[module]]\ninertia = [1,\n 0,\n 1]",
             3,
             "module[1].inertia",
-            "entry 2 must be > 0 kg·m²",
+            "entry 2 must be ≥ 1e-16 and ≤ 1000000 kg·m², got 0",
         );
         assert_invalid(
             "[[module]]\ninertia = [1, 1, 2.5]",
@@ -1076,6 +1103,12 @@ mod tests {
         // A thin plate sits exactly on the boundary and is accepted.
         assert!(parse("[[module]]\ninertia = [0.1, 0.2, 0.30000000000000004]").is_ok());
         assert!(parse("[[module]]\ninertia = [1, 1, 2]").is_ok());
+        assert_invalid(
+            "[[module]]\ninertia = [1e300, 1e300, 1e300]",
+            2,
+            "module[1].inertia",
+            "entry 1 must be ≥ 1e-16 and ≤ 1000000 kg·m², got 1e300",
+        );
     }
 
     #[test]
@@ -1123,10 +1156,16 @@ mod tests {
             "at least 3 tendons",
         );
         assert_invalid(
+            "[[module]]\ntendon_angles_deg = [90, 210, -270]",
+            2,
+            "module[1].tendon_angles_deg",
+            "entry 3 (-270°) is the same direction as entry 1 (90°)",
+        );
+        assert_invalid(
             "[[module]]\ntendon_angles_deg = [90, 210, 450]",
             2,
             "module[1].tendon_angles_deg",
-            "entry 3 (450°)",
+            "entry 3 must be ≥ -360 and ≤ 360°, got 450",
         );
         // Distinct, but three nearly coincident directions leave A nearly singular.
         assert_invalid(
@@ -1155,13 +1194,13 @@ mod tests {
             "[[module]]\nmargin = -0.001",
             2,
             "module[1].margin",
-            "must be ≥ 0 m, got -0.001",
+            "must be ≥ 0 and ≤ 1 m, got -0.001",
         );
         assert_invalid(
             "[[module]]\nmargin = [0, 0,\n 0, -1, 0, 0]",
             3,
             "module[1].margin",
-            "entry 4 must be ≥ 0 m",
+            "entry 4 must be ≥ 0 and ≤ 1 m, got -1",
         );
         assert_invalid(
             "[[module]]\nmargin = [0.1, 0.1, 0.1]",
@@ -1184,19 +1223,27 @@ mod tests {
     }
 
     #[test]
-    fn barrier_gains_must_be_positive() {
+    fn barrier_gains_must_be_positive_and_bounded() {
         assert_invalid(
             "[barrier]\np1 = 0\n[[module]]",
             2,
             "barrier.p1",
-            "must be > 0 1/s, got 0",
+            "must be > 0 and ≤ 10000 1/s, got 0",
         );
         assert_invalid(
             "[barrier]\np1 = 1\np2 = -2\n[[module]]",
             3,
             "barrier.p2",
-            "> 0 1/s",
+            "> 0 and ≤ 10000 1/s",
         );
+        assert_invalid(
+            "[barrier]\np1 = 1e308\n[[module]]",
+            2,
+            "barrier.p1",
+            "got 1e308",
+        );
+        let robot = parse("[barrier]\np1 = 1e4\np2 = 1e-9\n[[module]]").unwrap();
+        assert_eq!(robot.barrier_gains, [1e4, 1e-9]);
         assert_invalid("[barrier]\np2 = nan\n[[module]]", 2, "barrier.p2", "finite");
     }
 
@@ -1210,6 +1257,14 @@ mod tests {
         );
         let robot = parse("gravity = [0, 0, 0]\n[[module]]").unwrap();
         assert_eq!(robot.gravity, [0.0; 3]);
+        let robot = parse("gravity = [100, -100, 0]\n[[module]]").unwrap();
+        assert_eq!(robot.gravity, [100.0, -100.0, 0.0]);
+        assert_invalid(
+            "gravity = [0, 0, -1e300]\n[[module]]",
+            1,
+            "gravity",
+            "entry 3 must be ≥ -100 and ≤ 100 m/s², got -1e300",
+        );
     }
 
     #[test]
@@ -1218,7 +1273,7 @@ mod tests {
             "[defaults]\n\ncorner_radius = -0.05\n[[module]]\ncorner_radius = 0.05",
             3,
             "defaults.corner_radius",
-            "> 0 m",
+            "≥ 0.0001 and ≤ 10 m, got -0.05",
         );
         assert_invalid(
             "[defaults]\ntendon_angles_deg = [0, 0, 90]\n[[module]]",
@@ -1231,13 +1286,18 @@ mod tests {
     #[test]
     fn module_count_is_given_exactly_once() {
         assert_invalid("name = \"a\"\n", 1, "module", "has no modules");
-        assert_invalid("\n\nmodules = 0", 3, "modules", "between 1 and 1000, got 0");
+        assert_invalid(
+            "\n\nmodules = 0",
+            3,
+            "modules",
+            "an integer in 1..=1000, got 0",
+        );
         assert_invalid("modules = -3", 1, "modules", "got -3");
         assert_invalid(
             "modules = 1000000000000",
             1,
             "modules",
-            "between 1 and 1000",
+            "an integer in 1..=1000",
         );
         assert_invalid("modules = 2\n[[module]]", 1, "modules", "not both");
         assert_invalid("module = []", 1, "module", "at least one module");

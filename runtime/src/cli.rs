@@ -62,6 +62,18 @@ pub fn parse_number(name: &str, text: &str, limit: &Limit) -> Result<f64, String
     check_number(name, value, limit)
 }
 
+/// Parses a whole number given for option `name` and checks it against `limit` (an
+/// integer [`Limit`]): `--retries: must be an integer in 0..=1000, got 5000`.
+pub fn parse_integer(name: &str, text: &str, limit: &Limit) -> Result<i64, String> {
+    let value: i64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{name}: `{text}` is not a whole number"))?;
+    limit
+        .check_integer(value)
+        .map_err(|message| format!("{name}: {message}"))
+}
+
 /// Parses coordinates `q` of `robot` given for option `name`: `3·modules` finite values in
 /// the model's domain (bend, elongation; [`softcbf_codegen::limits`]).
 pub fn parse_coordinates(name: &str, text: &str, robot: &Robot) -> Result<Vec<f64>, String> {

@@ -6,11 +6,15 @@
 //! ([`ScenarioFile::resolve`]); every error names the file, the line and the field. The
 //! format is documented in `scenarios/README.md`.
 
-use std::ops::Range;
+use std::fmt;
 use std::path::{Path, PathBuf};
 
+use nalgebra::{DMatrix, SymmetricEigen};
 use serde::Deserialize;
-use softcbf_codegen::toml_file::{Checker, FileError, Rule};
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
+use softcbf_codegen::limits::{self, Limit, short};
+use softcbf_codegen::robot::Robot;
+use softcbf_codegen::toml_file::{Checker, FileError};
 use toml::Spanned;
 
 use crate::control::ControllerSettings;
@@ -53,14 +57,8 @@ pub struct ScenarioFile {
     raw: RawScenario,
 }
 
-/// A gain: a number (times the identity), a list (the diagonal) or a matrix (rows).
-#[derive(Clone, Debug, Deserialize)]
-#[serde(untagged)]
-enum RawGain {
-    Scalar(f64),
-    Diagonal(Vec<f64>),
-    Matrix(Vec<Vec<f64>>),
-}
+/// An array of numbers, each with its span.
+type RawVector = Spanned<Vec<Spanned<f64>>>;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -84,22 +82,22 @@ struct RawScenario {
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawInitial {
-    q: Option<Spanned<Vec<f64>>>,
-    qd: Option<Spanned<Vec<f64>>>,
+    q: Option<RawVector>,
+    qd: Option<RawVector>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawReference {
-    set_point: Option<Spanned<Vec<f64>>>,
+    set_point: Option<RawVector>,
     waypoints: Option<Spanned<Vec<Spanned<RawWaypoint>>>>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawWaypoint {
-    t: f64,
-    q: Vec<f64>,
+    t: Spanned<f64>,
+    q: RawVector,
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -118,6 +116,96 @@ struct RawIntegrator {
     atol: Option<Spanned<f64>>,
     h_initial: Option<Spanned<f64>>,
     max_steps: Option<Spanned<i64>>,
+}
+
+/// A gain: a number (times the identity), a list (the diagonal) or a list of rows (the
+/// matrix). Read by a visitor so that a wrong type says which forms are allowed.
+#[derive(Clone, Debug)]
+enum RawGain {
+    Scalar(f64),
+    Diagonal(Vec<Spanned<f64>>),
+    Matrix(Vec<Spanned<Vec<Spanned<f64>>>>),
+}
+
+/// What [`RawGain`]'s visitor expects.
+const GAIN_FORMS: &str = "a number, a list (the diagonal) or a list of rows";
+
+impl<'de> Deserialize<'de> for RawGain {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct GainVisitor;
+        impl<'de> Visitor<'de> for GainVisitor {
+            type Value = RawGain;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(GAIN_FORMS)
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<RawGain, E> {
+                Ok(RawGain::Scalar(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<RawGain, E> {
+                Ok(RawGain::Scalar(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RawGain, E> {
+                Ok(RawGain::Scalar(v as f64))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<RawGain, A::Error> {
+                let mut numbers = Vec::new();
+                let mut rows = Vec::new();
+                while let Some(entry) = seq.next_element::<Spanned<GainEntry>>()? {
+                    let span = entry.span();
+                    match entry.into_inner() {
+                        GainEntry::Number(v) => numbers.push(Spanned::new(span, v)),
+                        GainEntry::Row(row) => rows.push(Spanned::new(span, row)),
+                    }
+                    if !numbers.is_empty() && !rows.is_empty() {
+                        return Err(de::Error::custom(format!(
+                            "mixes numbers and rows; expected {GAIN_FORMS}"
+                        )));
+                    }
+                }
+                Ok(if rows.is_empty() {
+                    RawGain::Diagonal(numbers)
+                } else {
+                    RawGain::Matrix(rows)
+                })
+            }
+        }
+        deserializer.deserialize_any(GainVisitor)
+    }
+}
+
+/// An entry of a gain list: a number (of the diagonal) or a row.
+enum GainEntry {
+    Number(f64),
+    Row(Vec<Spanned<f64>>),
+}
+
+impl<'de> Deserialize<'de> for GainEntry {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct EntryVisitor;
+        impl<'de> Visitor<'de> for EntryVisitor {
+            type Value = GainEntry;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number (an entry of the diagonal) or a row (a list of numbers)")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<GainEntry, E> {
+                Ok(GainEntry::Number(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<GainEntry, E> {
+                Ok(GainEntry::Number(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<GainEntry, E> {
+                Ok(GainEntry::Number(v as f64))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<GainEntry, A::Error> {
+                let mut row = Vec::new();
+                while let Some(value) = seq.next_element::<Spanned<f64>>()? {
+                    row.push(value);
+                }
+                Ok(GainEntry::Row(row))
+            }
+        }
+        deserializer.deserialize_any(EntryVisitor)
+    }
 }
 
 /// Default control period \[s\] (the paper's simulation ticks at 1 kHz).
@@ -180,22 +268,40 @@ impl ScenarioFile {
             path: &self.path,
         };
         let raw = &self.raw;
-        let nq = model.nq();
-        let positive = |v: &Option<Spanned<f64>>, field: &str, default: f64, unit: &str| {
+        let number = |v: &Option<Spanned<f64>>, field: &str, limit: &Limit, default: f64| {
             v.as_ref()
-                .map_or(Ok(default), |v| c.number(v, field, Rule::Positive, unit))
+                .map_or(Ok(default), |v| c.within(v, field, limit))
         };
-        let control_period = positive(
+        let control_period = number(
             &raw.control_period,
             "control_period",
+            &limits::CONTROL_PERIOD_S,
             DEFAULT_CONTROL_PERIOD,
-            "s",
         )?;
-        let duration = positive(&raw.duration, "duration", DEFAULT_DURATION, "s")?;
-        if duration / control_period > MAX_TICKS {
-            let span = raw.duration.as_ref().map_or(0..0, Spanned::span);
+        let duration = number(
+            &raw.duration,
+            "duration",
+            &limits::DURATION_S,
+            DEFAULT_DURATION,
+        )?;
+        let duration_span = raw
+            .duration
+            .as_ref()
+            .or(raw.control_period.as_ref())
+            .map_or(0..0, Spanned::span);
+        if duration < control_period {
             return Err(c.invalid(
-                &span,
+                &duration_span,
+                "duration",
+                format!(
+                    "{duration} s is shorter than the control period ({control_period} s): \
+                     not one tick would be simulated"
+                ),
+            ));
+        }
+        if duration / control_period > MAX_TICKS {
+            return Err(c.invalid(
+                &duration_span,
                 "duration",
                 format!(
                     "{duration} s at a period of {control_period} s is {:.1e} ticks, more than {MAX_TICKS:.0e}",
@@ -204,46 +310,67 @@ impl ScenarioFile {
             ));
         }
 
-        let zeros = vec![0.0; nq];
-        let vector = |v: &Option<Spanned<Vec<f64>>>, field: &str, unit: &str| match v {
-            Some(v) => sized(&c, v.get_ref(), &v.span(), field, nq, unit),
-            None => Ok(zeros.clone()),
-        };
-        let initial_q = vector(&raw.initial.q, "initial.q", "m")?;
-        let initial_qd = vector(&raw.initial.qd, "initial.qd", "m/s")?;
+        let robot = &model.robot;
+        let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
+        let initial_qd = state(&c, raw.initial.qd.as_ref(), "initial.qd", robot, Velocities)?;
 
-        let reference = self.reference(&c, nq)?;
+        let reference = self.reference(&c, robot, control_period)?;
 
         let (kp_default, kd_default) = PAPER_GAINS;
-        let kp = gain(&c, raw.gains.kp.as_ref(), "gains.kp", nq, kp_default)?;
-        let kd = gain(&c, raw.gains.kd.as_ref(), "gains.kd", nq, kd_default)?;
+        let nq = model.nq();
+        let kp = gain(
+            &c,
+            raw.gains.kp.as_ref(),
+            "gains.kp",
+            nq,
+            kp_default,
+            &limits::KP_N_PER_M,
+        )?;
+        let kd = gain(
+            &c,
+            raw.gains.kd.as_ref(),
+            "gains.kd",
+            nq,
+            kd_default,
+            &limits::KD_N_S_PER_M,
+        )?;
         let [p1_default, p2_default] = model.robot.barrier_gains;
-        let p1 = positive(&raw.gains.p1, "gains.p1", p1_default, "1/s")?;
-        let p2 = positive(&raw.gains.p2, "gains.p2", p2_default, "1/s")?;
+        let p1 = number(
+            &raw.gains.p1,
+            "gains.p1",
+            &limits::BARRIER_GAIN_PER_S,
+            p1_default,
+        )?;
+        let p2 = number(
+            &raw.gains.p2,
+            "gains.p2",
+            &limits::BARRIER_GAIN_PER_S,
+            p2_default,
+        )?;
 
         let mut tolerances = Tolerances::default();
         let integrator = &raw.integrator;
-        tolerances.rtol = positive(&integrator.rtol, "integrator.rtol", tolerances.rtol, "")?;
-        tolerances.atol = positive(&integrator.atol, "integrator.atol", tolerances.atol, "")?;
-        tolerances.h_initial = positive(
+        tolerances.rtol = number(
+            &integrator.rtol,
+            "integrator.rtol",
+            &limits::RTOL,
+            tolerances.rtol,
+        )?;
+        tolerances.atol = number(
+            &integrator.atol,
+            "integrator.atol",
+            &limits::ATOL,
+            tolerances.atol,
+        )?;
+        tolerances.h_initial = number(
             &integrator.h_initial,
             "integrator.h_initial",
+            &limits::H_INITIAL_S,
             tolerances.h_initial,
-            "s",
         )?;
         if let Some(max_steps) = &integrator.max_steps {
-            let value = *max_steps.get_ref();
-            tolerances.max_steps =
-                usize::try_from(value)
-                    .ok()
-                    .filter(|&n| n >= 1)
-                    .ok_or_else(|| {
-                        c.invalid(
-                            &max_steps.span(),
-                            "integrator.max_steps",
-                            format!("must be an integer ≥ 1, got {value}"),
-                        )
-                    })?;
+            let steps = c.integer_within(max_steps, "integrator.max_steps", &limits::MAX_STEPS)?;
+            tolerances.max_steps = usize::try_from(steps).unwrap_or(1);
         }
         tolerances.h_max = control_period;
         tolerances.h_initial = tolerances.h_initial.min(control_period);
@@ -283,7 +410,12 @@ impl ScenarioFile {
         })
     }
 
-    fn reference(&self, c: &Checker<'_>, nq: usize) -> Result<ReferenceSpec, FileError> {
+    fn reference(
+        &self,
+        c: &Checker<'_>,
+        robot: &Robot,
+        control_period: f64,
+    ) -> Result<ReferenceSpec, FileError> {
         let Some(reference) = &self.raw.reference else {
             return Err(c.invalid(
                 &(0..0),
@@ -296,13 +428,12 @@ impl ScenarioFile {
             &reference.get_ref().set_point,
             &reference.get_ref().waypoints,
         ) {
-            (Some(point), None) => Ok(ReferenceSpec::SetPoint(sized(
+            (Some(point), None) => Ok(ReferenceSpec::SetPoint(state(
                 c,
-                point.get_ref(),
-                &point.span(),
+                Some(point),
                 "reference.set_point",
-                nq,
-                "m",
+                robot,
+                Coordinates,
             )?)),
             (None, Some(points)) => {
                 if points.get_ref().is_empty() {
@@ -315,31 +446,37 @@ impl ScenarioFile {
                 let mut out: Vec<(f64, Vec<f64>)> = Vec::new();
                 for (k, point) in points.get_ref().iter().enumerate() {
                     let field = format!("reference.waypoints[{}]", k + 1);
-                    let t = point.get_ref().t;
-                    let t = c.check(
-                        t,
-                        &point.span(),
-                        &format!("{field}.t"),
-                        "",
-                        Rule::NonNegative,
-                        "s",
-                    )?;
-                    if let Some((previous, _)) = out.last()
-                        && t <= *previous
-                    {
-                        return Err(c.invalid(
-                            &point.span(),
-                            &format!("{field}.t"),
-                            format!("times must increase: {t} s follows {previous} s"),
-                        ));
+                    let waypoint = point.get_ref();
+                    let t =
+                        c.within(&waypoint.t, &format!("{field}.t"), &limits::WAYPOINT_TIME_S)?;
+                    if let Some((previous, _)) = out.last() {
+                        let (now, before) = (short(t), short(*previous));
+                        let problem = if t <= *previous {
+                            Some(format!("times must increase: {now} s follows {before} s"))
+                        } else if t - previous < control_period * (1.0 - SPACING_TOLERANCE) {
+                            Some(format!(
+                                "{now} s is {:.2e} s after waypoint {k} ({before} s); \
+                                 consecutive waypoints must be at least one control period \
+                                 apart ({control_period} s)",
+                                t - previous
+                            ))
+                        } else {
+                            None
+                        };
+                        if let Some(message) = problem {
+                            return Err(c.invalid(
+                                &waypoint.t.span(),
+                                &format!("{field}.t"),
+                                message,
+                            ));
+                        }
                     }
-                    let q = sized(
+                    let q = state(
                         c,
-                        &point.get_ref().q,
-                        &point.span(),
+                        Some(&waypoint.q),
                         &format!("{field}.q"),
-                        nq,
-                        "m",
+                        robot,
+                        Coordinates,
                     )?;
                     out.push((t, q));
                 }
@@ -359,69 +496,97 @@ impl ScenarioFile {
     }
 }
 
-/// Checks that `values` has `nq` finite entries.
-fn sized(
+/// Relative slack on the spacing of waypoints, so that times written in decimals one
+/// period apart (0.3 after 0.2 at 0.1 s) are not refused for their rounding.
+const SPACING_TOLERANCE: f64 = 1e-9;
+
+/// Which part of the state a vector holds.
+#[derive(Clone, Copy)]
+enum Part {
+    Coordinates,
+    Velocities,
+}
+use Part::{Coordinates, Velocities};
+
+/// A state vector of `robot` (zeros when not given): one finite entry per coordinate, in
+/// the model's domain (`softcbf_codegen::limits`).
+fn state(
     c: &Checker<'_>,
-    values: &[f64],
-    span: &Range<usize>,
+    v: Option<&RawVector>,
     field: &str,
-    nq: usize,
-    unit: &str,
+    robot: &Robot,
+    part: Part,
 ) -> Result<Vec<f64>, FileError> {
-    if values.len() != nq {
-        return Err(c.invalid(
-            span,
-            field,
-            format!(
-                "has {} entries, the robot has {nq} coordinates (3 per module: Δx, Δy, δL)",
-                values.len()
-            ),
-        ));
-    }
-    for (k, &v) in values.iter().enumerate() {
-        c.check(
-            v,
-            span,
-            field,
-            &format!("entry {} ", k + 1),
-            Rule::Finite,
-            unit,
-        )?;
-    }
-    Ok(values.to_vec())
+    let nq = 3 * robot.modules.len();
+    let Some(v) = v else {
+        return Ok(vec![0.0; nq]);
+    };
+    sized(c, v, field, nq, "coordinates (3 per module: Δx, Δy, δL)")?;
+    let values = c.finite_list(v.get_ref(), field)?;
+    let problem = match part {
+        Coordinates => limits::coordinates_problem(robot, &values),
+        Velocities => limits::velocities_problem(robot, &values),
+    };
+    c.state(problem, v, field)?;
+    Ok(values)
 }
 
-/// A gain matrix `nq × nq` (row-major) from a number, a diagonal or rows.
+/// Checks that the array `v` has `n` entries (`what` says what they are).
+fn sized<T>(
+    c: &Checker<'_>,
+    v: &Spanned<Vec<T>>,
+    field: &str,
+    n: usize,
+    what: &str,
+) -> Result<(), FileError> {
+    let len = v.get_ref().len();
+    if len == n {
+        return Ok(());
+    }
+    Err(c.invalid(
+        &v.span(),
+        field,
+        format!("has {len} entries, the robot has {n} {what}"),
+    ))
+}
+
+/// A gain matrix `nq × nq` (row-major) from a number, a diagonal or rows. A number and the
+/// diagonal lie in `limit`; a matrix has its diagonal in `limit`, every other entry within
+/// `±limit.max`, and a positive semidefinite symmetric part.
 fn gain(
     c: &Checker<'_>,
     raw: Option<&Spanned<RawGain>>,
     field: &str,
     nq: usize,
     default: f64,
+    limit: &Limit,
 ) -> Result<Vec<f64>, FileError> {
     let Some(raw) = raw else {
         return Ok(crate::control::scaled_identity(nq, default));
     };
     let span = raw.span();
-    let mut matrix = vec![0.0; nq * nq];
     match raw.get_ref() {
         RawGain::Scalar(k) => {
-            let k = c.check(*k, &span, field, "", Rule::NonNegative, "")?;
-            matrix = crate::control::scaled_identity(nq, k);
+            let k = c.limited(*k, &span, field, "", limit)?;
+            Ok(crate::control::scaled_identity(nq, k))
         }
         RawGain::Diagonal(diagonal) => {
-            let diagonal = sized(c, diagonal, &span, field, nq, "")?;
-            for (i, k) in diagonal.iter().enumerate() {
-                c.check(
-                    *k,
+            if diagonal.len() != nq {
+                return Err(c.invalid(
                     &span,
                     field,
-                    &format!("entry {} ", i + 1),
-                    Rule::NonNegative,
-                    "",
-                )?;
+                    format!(
+                        "has {} entries, the robot has {nq} coordinates",
+                        diagonal.len()
+                    ),
+                ));
+            }
+            let diagonal = c.list_within(diagonal, field, limit)?;
+            let mut matrix = vec![0.0; nq * nq];
+            for (i, k) in diagonal.iter().enumerate() {
                 matrix[i * nq + i] = *k;
             }
+            Ok(matrix)
         }
         RawGain::Matrix(rows) => {
             if rows.len() != nq {
@@ -434,11 +599,271 @@ fn gain(
                     ),
                 ));
             }
+            let off_diagonal = limit.either_sign();
+            let mut matrix = vec![0.0; nq * nq];
             for (i, row) in rows.iter().enumerate() {
-                let row = sized(c, row, &span, &format!("{field} row {}", i + 1), nq, "")?;
-                matrix[i * nq..(i + 1) * nq].copy_from_slice(&row);
+                let what = format!("row {}", i + 1);
+                sized(c, row, &format!("{field} {what}"), nq, "coordinates")?;
+                for (j, entry) in row.get_ref().iter().enumerate() {
+                    matrix[i * nq + j] = c.limited(
+                        *entry.get_ref(),
+                        &entry.span(),
+                        field,
+                        &format!("{what} entry {} ", j + 1),
+                        if i == j { limit } else { &off_diagonal },
+                    )?;
+                }
+            }
+            if let Some(message) = indefinite(&matrix, nq) {
+                return Err(c.invalid(&span, field, message));
+            }
+            Ok(matrix)
+        }
+    }
+}
+
+/// Why the symmetric part `(K + Kᵀ)/2` of a square matrix (row-major, `n × n`, finite
+/// entries) is not positive semidefinite, or `None` when it is (to rounding: eigenvalues
+/// down to `−1e-10·max|K_ij|` pass).
+fn indefinite(matrix: &[f64], n: usize) -> Option<String> {
+    let symmetric = DMatrix::from_fn(n, n, |i, j| 0.5 * (matrix[i * n + j] + matrix[j * n + i]));
+    let scale = matrix.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let Some(eigen) = SymmetricEigen::try_new(symmetric, f64::EPSILON, 10_000) else {
+        return Some("its eigenvalues could not be computed; give a diagonal instead".into());
+    };
+    let lowest = eigen
+        .eigenvalues
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    (lowest < -1e-10 * scale).then(|| {
+        format!(
+            "the symmetric part (K + Kᵀ)/2 has the eigenvalue {}; a gain matrix must be \
+             positive semidefinite (a negative eigenvalue pushes the robot away from the \
+             reference)",
+            short(lowest)
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paper robot (6 coordinates: `d` = 0.04 m, `L0` = 0.1 m per module).
+    fn model() -> Model {
+        Model::new(Robot::paper_sim()).expect("the paper model is generated")
+    }
+
+    const REFERENCE: &str = "[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n";
+
+    fn resolve(text: &str) -> Result<Scenario, FileError> {
+        ScenarioFile::parse(text, Path::new("scenarios/x.toml"))?.resolve(&model())
+    }
+
+    /// Asserts that `text` is refused with `fragment` in the message (which starts with
+    /// the file, the line and the field).
+    #[track_caller]
+    fn refused(text: &str, fragment: &str) {
+        match resolve(text) {
+            Ok(_) => panic!("accepted:\n{text}"),
+            Err(error) => {
+                let message = error.to_string();
+                assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
             }
         }
     }
-    Ok(matrix)
+
+    #[test]
+    fn the_paper_scenario_resolves_to_its_numbers() {
+        let scenario = ScenarioFile::paper_sim().resolve(&model()).unwrap();
+        assert_eq!((scenario.duration, scenario.control_period), (10.0, 1e-3));
+        assert_eq!(
+            scenario.reference,
+            ReferenceSpec::SetPoint(vec![0.08, 0.0, -0.05, 0.0, -0.06, -0.07])
+        );
+        assert_eq!(scenario.controller.kp[0], 5.0);
+        assert_eq!(scenario.controller.kd[7], 1.0);
+        assert_eq!(scenario.controller.barrier_gains, [10.0, 10.0]);
+    }
+
+    #[test]
+    fn numbers_lie_in_their_physical_ranges() {
+        refused(
+            &format!("duration = 1e300\n{REFERENCE}"),
+            "x.toml:1: field `duration`: must be > 0 and ≤ 1000000 s, got 1e300",
+        );
+        refused(
+            &format!("control_period = 2\n{REFERENCE}"),
+            "x.toml:1: field `control_period`: must be ≥ 1e-6 and ≤ 1 s, got 2",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\np1 = 1e308\n"),
+            "x.toml:4: field `gains.p1`: must be > 0 and ≤ 10000 1/s, got 1e308",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\np2 = -1\n"),
+            "field `gains.p2`: must be > 0",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\nkp = 2e6\n"),
+            "x.toml:4: field `gains.kp`: must be ≥ 0 and ≤ 1000000 N/m, got 2000000",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\nkd = [1, 1, 1, 1, -1, 1]\n"),
+            "field `gains.kd`: entry 5 must be ≥ 0 and ≤ 1000000 N·s/m, got -1",
+        );
+        refused(
+            &format!("{REFERENCE}[integrator]\nrtol = 0\n"),
+            "x.toml:4: field `integrator.rtol`: must be ≥ 1e-12 and ≤ 1, got 0",
+        );
+        refused(
+            &format!("{REFERENCE}[integrator]\natol = 10\n"),
+            "field `integrator.atol`: must be ≥ 1e-15 and ≤ 1, got 10",
+        );
+        refused(
+            &format!("{REFERENCE}[integrator]\nh_initial = 1e-300\n"),
+            "field `integrator.h_initial`: must be ≥ 1e-12 and ≤ 1 s, got 1e-300",
+        );
+        refused(
+            &format!("{REFERENCE}[integrator]\nmax_steps = 0\n"),
+            "field `integrator.max_steps`: must be an integer in 1..=10000000, got 0",
+        );
+        // The bounds themselves are accepted.
+        let scenario = resolve(&format!(
+            "duration = 1\ncontrol_period = 1\n{REFERENCE}[gains]\nkp = 1e6\nkd = 0\np1 = 1e4\n\
+             [integrator]\nrtol = 1e-12\natol = 1\nh_initial = 1\nmax_steps = 10000000\n"
+        ))
+        .unwrap();
+        assert_eq!(scenario.controller.kp[0], 1e6);
+        assert_eq!(scenario.controller.barrier_gains[0], 1e4);
+        assert_eq!(scenario.tolerances.max_steps, 10_000_000);
+    }
+
+    /// Set points, waypoints and the initial state lie in the state domain: bends of at most
+    /// 1.5π·0.04 m = 0.1885 m, elongations of at most 1 m, speeds of at most 100 m/s.
+    #[test]
+    fn states_lie_in_the_state_domain() {
+        refused(
+            "[reference]\nset_point = [1e308, 0, 0, 0, 0, 0]\n",
+            "x.toml:2: field `reference.set_point`: module 1 bends by",
+        );
+        refused(
+            "[reference]\nset_point = [0, 0, 0,\n 0, 0, -1.01]\n",
+            "x.toml:3: field `reference.set_point`: entry 6 (δL of module 2)",
+        );
+        refused(
+            &format!("{REFERENCE}[initial]\nq = [0, 0, 0, 0.14, 0.14, 0]\n"),
+            "x.toml:4: field `initial.q`: module 2 bends",
+        );
+        refused(
+            &format!("{REFERENCE}[initial]\nqd = [0, 0, 0, 0, 0, 100.5]\n"),
+            "field `initial.qd`: entry 6 is 1.005e2 m/s; speeds must be ≤ 100 m/s",
+        );
+        refused(
+            "[reference]\nwaypoints = [{ t = 0, q = [0, 0, 0, 0, 0, 0] },\n { t = 1, q = [0, 0, 11, 0, 0, 0] }]\n",
+            "x.toml:3: field `reference.waypoints[2].q`: entry 3 (δL of module 1)",
+        );
+        let scenario = resolve(&format!(
+            "{REFERENCE}[initial]\nq = [0.108, 0.144, 1, 0, 0, -1]\nqd = [100, -100, 0, 0, 0, 0]\n"
+        ))
+        .unwrap();
+        assert_eq!(scenario.initial_q, [0.108, 0.144, 1.0, 0.0, 0.0, -1.0]);
+    }
+
+    #[test]
+    fn full_matrix_gains_are_positive_semidefinite() {
+        let rows = |diagonal: [f64; 6], extra: (usize, usize, f64)| {
+            let mut text = String::from("kp = [\n");
+            for (i, own) in diagonal.iter().enumerate() {
+                let row: Vec<String> = (0..6)
+                    .map(|j| {
+                        let v = if i == j {
+                            *own
+                        } else if (i, j) == (extra.0, extra.1) {
+                            extra.2
+                        } else {
+                            0.0
+                        };
+                        v.to_string()
+                    })
+                    .collect();
+                text += &format!("  [{}],\n", row.join(", "));
+            }
+            format!("{REFERENCE}[gains]\n{text}]\n")
+        };
+        // A −1 on the diagonal (the list form forbids it too).
+        refused(
+            &rows([5.0, 5.0, -1.0, 5.0, 5.0, 5.0], (0, 1, 0.0)),
+            "x.toml:7: field `gains.kp`: row 3 entry 3 must be ≥ 0 and ≤ 1000000 N/m, got -1",
+        );
+        // Non-negative diagonal, but [[1, 3], [3, 1]] has the eigenvalue 1 − 3 = −2.
+        refused(
+            &rows([1.0, 1.0, 1.0, 1.0, 1.0, 1.0], (0, 1, 6.0)),
+            "field `gains.kp`: the symmetric part (K + Kᵀ)/2 has the eigenvalue -2",
+        );
+        // [[1, 2], [0, 1]]: symmetric part [[1, 1], [1, 1]], eigenvalues 0 and 2: accepted.
+        let scenario = resolve(&rows([1.0; 6], (0, 1, 2.0))).unwrap();
+        assert_eq!(scenario.controller.kp[1], 2.0);
+        assert_eq!(scenario.controller.kp[6], 0.0);
+        refused(
+            &rows([1.0; 6], (0, 1, 1e7)),
+            "row 1 entry 2 must be ≥ -1000000 and ≤ 1000000 N/m, got 1e7",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\nkp = [[1, 0], [0, 1]]\n"),
+            "field `gains.kp`: has 2 rows, expected 6",
+        );
+    }
+
+    #[test]
+    fn a_gain_of_the_wrong_form_names_the_forms_and_the_field() {
+        refused(
+            &format!("{REFERENCE}[gains]\nkp = \"five\"\n"),
+            "x.toml:4:6: field `gains.kp`: invalid type: string \"five\", expected a number, \
+             a list (the diagonal) or a list of rows",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\nkd = [1, [1, 2]]\n"),
+            "field `gains.kd`: mixes numbers and rows",
+        );
+        refused(
+            &format!("{REFERENCE}[gains]\nkd = [[1, \"a\"]]\n"),
+            "x.toml:4:11: field `gains.kd`, row 1 entry 2: invalid type: string \"a\", \
+             expected a number",
+        );
+    }
+
+    #[test]
+    fn the_run_holds_at_least_one_tick_and_waypoints_a_period_apart() {
+        refused(
+            &format!("control_period = 1.0\nduration = 0.05\n{REFERENCE}"),
+            "x.toml:2: field `duration`: 0.05 s is shorter than the control period (1 s)",
+        );
+        let waypoints = |t2: &str| {
+            format!(
+                "control_period = 0.1\n[reference]\nwaypoints = [\n  {{ t = 0.2, q = [0, 0, 0, 0, 0, 0] }},\n  {{ t = {t2}, q = [0.01, 0, 0, 0, 0, 0] }},\n]\n"
+            )
+        };
+        refused(
+            &waypoints("0.2000000001"),
+            "x.toml:5: field `reference.waypoints[2].t`: 0.2000000001 s is 1.00e-10 s after \
+             waypoint 1 (0.2 s); consecutive waypoints must be at least one control period \
+             apart (0.1 s)",
+        );
+        refused(
+            &waypoints("0.1"),
+            "times must increase: 0.1 s follows 0.2 s",
+        );
+        // 0.3 − 0.2 rounds to 0.09999999999999998: one period, written in decimals.
+        assert!(resolve(&waypoints("0.3")).is_ok());
+        // Waypoints at 0 and 1e-300 s gave a NaN tick.
+        refused(
+            "[reference]\nwaypoints = [{ t = 0, q = [0, 0, 0, 0, 0, 0] },\n  \
+             { t = 1e-300, q = [0.01, 0, 0, 0, 0, 0] }]\n",
+            "x.toml:3: field `reference.waypoints[2].t`: 1e-300 s is 1.00e-300 s after \
+             waypoint 1 (0 s); consecutive waypoints must be at least one control period \
+             apart (0.001 s)",
+        );
+    }
 }

@@ -1,15 +1,22 @@
-//! What `softcbf model` reads and prints: `--q`/`--qd` parsing (wrong length, non-numbers,
-//! NaN and infinities rejected with a message naming the entry) and the report's JSON keys,
-//! shapes and values against the hand-written reference evaluation.
+//! What `softcbf model` reads and prints: `--q`/`--qd` parsing (length, numbers, the state
+//! domain), numbers checked by the shared limits, robot files that never end, and the
+//! report's JSON keys, shapes and values against the hand-written reference evaluation.
 //!
 //! The binary itself is not run: `CARGO_BIN_EXE_softcbf` exists only for the runtime
 //! package's own tests, so this tests the library functions `main` calls
 //! (`softcbf::cli::parse_vector`, `softcbf::inspect::model_report`).
 
 use serde_json::Value;
-use softcbf::cli::{load_robot, parse_vector};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use softcbf::cli::{
+    check_number, load_robot, parse_coordinates, parse_integer, parse_number, parse_vector,
+    parse_velocities,
+};
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
+use softcbf_codegen::limits;
 use softcbf_tests::reference::{self, Jet};
 
 fn error_of(text: &str, expected: usize) -> String {
@@ -73,6 +80,93 @@ fn parse_vector_rejects_nan_and_infinity() {
             "`{text}`: {message}"
         );
     }
+}
+
+/// `--q` lies in the state domain of the paper robot (`d` = 0.04 m, `L0` = 0.1 m): a bend
+/// of at most 1.5π·0.04 = 0.1885 m, an elongation of at most 1 m.
+#[test]
+fn coordinates_lie_in_the_state_domain() {
+    let robot = load_robot(None).expect("embedded robot");
+    let q = parse_coordinates("--q", "0.108, 0.144, 1, 0, -0.188, -1", &robot).expect("inside");
+    assert_eq!(q, [0.108, 0.144, 1.0, 0.0, -0.188, -1.0]);
+    for (text, fragment) in [
+        ("1e308,0,0,0,0,0", "--q: module 1 bends by θ = inf rad"),
+        ("0,0,0,0.12,0.15,0", "--q: module 2 bends by"),
+        (
+            "0,0,0,0,0,-1.5",
+            "--q: entry 6 (δL of module 2) is -1.5e0 m",
+        ),
+        (
+            "0,0,nan,0,0,0",
+            "--q: entry 3 is NaN; values must be finite",
+        ),
+        ("0,0,0", "--q: 3 values given, the robot has 6 coordinates"),
+    ] {
+        let message = parse_coordinates("--q", text, &robot).unwrap_err();
+        assert!(message.starts_with(fragment), "`{text}`: {message}");
+    }
+    let qd = parse_velocities("--qd", "100,-100,0,0,0,0.5", &robot).expect("inside");
+    assert_eq!(qd[1], -100.0);
+    let message = parse_velocities("--qd", "0,0,0,0,-100.5,0", &robot).unwrap_err();
+    assert!(
+        message.starts_with("--qd: entry 5 is -1.005e2 m/s; speeds must be ≤ 100 m/s"),
+        "{message}"
+    );
+}
+
+/// Numbers of the command line are checked by the same limits as the files.
+#[test]
+fn numbers_are_checked_by_the_shared_limits() {
+    assert_eq!(
+        parse_number("--timeout-ms", "1e300", &limits::REPLY_TIMEOUT_MS).unwrap_err(),
+        "--timeout-ms: must be > 0 and ≤ 1000 ms, got 1e300"
+    );
+    assert_eq!(
+        parse_number("--timeout-ms", " 25 ", &limits::REPLY_TIMEOUT_MS),
+        Ok(25.0)
+    );
+    assert_eq!(
+        parse_number("--rate", "fast", &limits::RATE_HZ).unwrap_err(),
+        "--rate: `fast` is not a number"
+    );
+    assert_eq!(
+        check_number("--rate", -33.0, &limits::RATE_HZ).unwrap_err(),
+        "--rate: must be ≥ 1 and ≤ 10000 Hz, got -33"
+    );
+    assert_eq!(
+        parse_integer("--retries", "1000", &limits::RETRIES),
+        Ok(1000)
+    );
+    assert_eq!(
+        parse_integer("--retries", "5000", &limits::RETRIES).unwrap_err(),
+        "--retries: must be an integer in 0..=1000, got 5000"
+    );
+    assert_eq!(
+        parse_integer("--max-errors", "2.5", &limits::MAX_CONSECUTIVE_ERRORS).unwrap_err(),
+        "--max-errors: `2.5` is not a whole number"
+    );
+    assert!(
+        parse_integer("--id", "99999999999999999999", &limits::SERVO_ID)
+            .unwrap_err()
+            .contains("is not a whole number")
+    );
+}
+
+/// `--robot /dev/zero` grew to 1.9 GB: it now fails at once, naming the file and the limit.
+#[test]
+fn an_endless_robot_file_fails_fast() {
+    let zero = Path::new("/dev/zero");
+    if !zero.exists() {
+        return;
+    }
+    let started = Instant::now();
+    let message = load_robot(Some(zero)).unwrap_err().to_string();
+    assert_eq!(
+        message,
+        "/dev/zero: cannot read robot file: larger than 1048576 bytes (1 MiB), the most a \
+         description file may have"
+    );
+    assert!(started.elapsed() < Duration::from_secs(5));
 }
 
 fn numbers(value: &Value, what: &str) -> Vec<f64> {

@@ -164,7 +164,7 @@ fn malformed_scenarios_name_file_line_and_field() {
         ),
         (
             format!("duration = -1.0\n{reference}"),
-            "scenarios/bad.toml:1: field `duration`: must be > 0 s, got -1",
+            "scenarios/bad.toml:1: field `duration`: must be > 0 and ≤ 1000000 s, got -1",
         ),
         (
             "[reference]\nset_point = [0.1, 0.2]\n".to_string(),
@@ -196,8 +196,8 @@ fn malformed_scenarios_name_file_line_and_field() {
             "scenarios/bad.toml:4: field `initial.q`: entry 3 must be a finite number",
         ),
         (
-            format!("control_period = 1e-12\n{reference}"),
-            "field `duration`",
+            format!("control_period = 1e-6\nduration = 1000.0\n{reference}"),
+            "field `duration`: 1000 s at a period of 0.000001 s is 1.0e9 ticks",
         ),
     ];
     for (text, expected) in cases {
