@@ -90,7 +90,7 @@ fn iteration(c: &mut Criterion) {
 /// of a reading under the command in force, from a state held at the barriers. A reading
 /// is about 2 ms old on a healthy 1 Mbit/s bus; 33 ms when replies come 5 ms late.
 fn prediction(c: &mut Criterion) {
-    use softcbf::integrator::Tolerances;
+    use softcbf::hardware::run_loop::prediction_tolerances;
     use softcbf::plant::Plant;
     let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -98,7 +98,7 @@ fn prediction(c: &mut Criterion) {
     ));
     let robot = Robot::load(path).unwrap();
     let model = Model::new(robot).unwrap();
-    let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
+    let mut plant = Plant::new(&model, prediction_tolerances()).unwrap();
     let q = [0.0, 0.0, -0.0556, 0.0, -0.0014, -0.0535];
     let qd = [0.01, -0.02, -0.05, 0.0, 0.03, -0.01];
     let tau = [0.0, 0.0, -12.0, 0.0, -0.5, -5.0];

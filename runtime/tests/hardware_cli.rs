@@ -537,123 +537,82 @@ fn bad_command_lines_are_refused_naming_the_option() {
     let a_file = temp_dir("a-file").join("file");
     std::fs::write(&a_file, "not a directory").unwrap();
     let a_file = a_file.to_str().unwrap();
-    let run = |extra: &[&str]| {
-        let mut args = vec!["run", "--robot", robot, "--port", "/nonexistent/port"];
-        args.extend_from_slice(extra);
-        softcbf(&args)
-    };
-    let emulate = |extra: &[&str]| {
-        let mut args = vec!["emulate", "--robot", robot];
-        args.extend_from_slice(extra);
-        softcbf(&args)
-    };
-    let cases: Vec<(&str, (i32, String, String), &str)> = vec![
+    let run = ["run", "--robot", robot, "--port", "/nonexistent/port"];
+    let emulate = ["emulate", "--robot", robot];
+    let q_huge = "1e308,0,0,0,0,0";
+    // (command line, what the error must say)
+    let cases: Vec<(Vec<&str>, &str)> = vec![
         (
-            "emulate --delay-ms inf",
-            emulate(&["--delay-ms", "inf"]),
+            [&emulate[..], &["--delay-ms", "inf"]].concat(),
             "--delay-ms",
         ),
         (
-            "emulate --delay-ms 1e308",
-            emulate(&["--delay-ms", "1e308"]),
+            [&emulate[..], &["--delay-ms", "1e308"]].concat(),
             "--delay-ms",
         ),
         (
-            "emulate --delay-ms nan",
-            emulate(&["--delay-ms", "nan"]),
+            [&emulate[..], &["--delay-ms", "nan"]].concat(),
             "--delay-ms",
         ),
         (
-            "emulate --silent-after 1e308",
-            emulate(&["--silent-after", "1e308"]),
+            [&emulate[..], &["--silent-after", "1e308"]].concat(),
             "--silent-after",
         ),
         (
-            "emulate --silent-after nan",
-            emulate(&["--silent-after", "nan"]),
+            [&emulate[..], &["--silent-after", "nan"]].concat(),
             "--silent-after",
         ),
         (
-            "emulate --baud 0",
-            emulate(&["--baud", "0"]),
+            [&emulate[..], &["--baud", "0"]].concat(),
             "--baud: 0 bit/s is not an X-series baud rate",
         ),
-        ("emulate --drop 2", emulate(&["--drop", "2"]), "--drop"),
-        ("run --rate -33", run(&["--rate", "-33"]), "--rate: must be"),
+        ([&emulate[..], &["--drop", "2"]].concat(), "--drop"),
         (
-            "run --rate 1e-9",
-            run(&["--rate", "1e-9", "--duration", "1"]),
+            [&emulate[..], &["--silent-servo", "9"]].concat(),
+            "--silent-servo: the robot has no servo 9",
+        ),
+        ([&run[..], &["--rate", "-33"]].concat(), "--rate: must be"),
+        (
+            [&run[..], &["--rate", "1e-9", "--duration", "1"]].concat(),
             "--rate",
         ),
-        ("run --baud 0", run(&["--baud", "0"]), "--baud"),
-        ("run --baud 12345", run(&["--baud", "12345"]), "--baud"),
+        ([&run[..], &["--baud", "0"]].concat(), "--baud"),
+        ([&run[..], &["--baud", "12345"]].concat(), "--baud"),
         (
-            "run --max-errors 100000",
-            run(&["--max-errors", "100000"]),
+            [&run[..], &["--max-errors", "100000"]].concat(),
             "--max-errors",
         ),
         (
-            "run --duration 0.001",
-            run(&["--duration", "0.001"]),
+            [&run[..], &["--duration", "0.001"]].concat(),
             "shorter than one tick",
         ),
+        ([&run[..], &["--duration", "inf"]].concat(), "--duration"),
+        ([&run[..], &["--set-point", q_huge]].concat(), "--set-point"),
+        ([&run[..], &["--min-rate", "50"]].concat(), "--min-rate"),
         (
-            "run --duration inf",
-            run(&["--duration", "inf"]),
-            "--duration",
-        ),
-        (
-            "run --set-point 1e308",
-            run(&["--set-point", "1e308,0,0,0,0,0"]),
-            "--set-point",
-        ),
-        (
-            "run --min-rate 50",
-            run(&["--min-rate", "50"]),
-            "--min-rate",
-        ),
-        (
-            "run --bus-watchdog-ms 40",
-            run(&["--bus-watchdog-ms", "40"]),
+            [&run[..], &["--bus-watchdog-ms", "40"]].concat(),
             "--bus-watchdog-ms",
         ),
         (
-            "run --barrier-threshold nan",
-            run(&["--barrier-threshold", "nan"]),
+            [&run[..], &["--barrier-threshold", "nan"]].concat(),
             "--barrier-threshold",
         ),
         (
-            "run --out FILE",
-            run(&["--out", a_file]),
+            [&run[..], &["--out", a_file]].concat(),
             "is a file, not a directory",
         ),
+        (vec!["model", "--q", q_huge], "--q"),
+        (vec!["model", "--q", "1e154,0,0,0,0,0"], "--q"),
+        (vec!["model", "--q", "0,0,1e308,0,0,0"], "--q"),
+        (vec!["model", "--qd", q_huge], "--qd"),
         (
-            "model --q 1e308",
-            softcbf(&["model", "--q", "1e308,0,0,0,0,0"]),
-            "--q",
-        ),
-        (
-            "model --q 1e154",
-            softcbf(&["model", "--q", "1e154,0,0,0,0,0"]),
-            "--q",
-        ),
-        (
-            "model --q δL 1e308",
-            softcbf(&["model", "--q", "0,0,1e308,0,0,0"]),
-            "--q",
-        ),
-        (
-            "model --qd 1e308",
-            softcbf(&["model", "--qd", "1e308,0,0,0,0,0"]),
-            "--qd",
-        ),
-        (
-            "simulate --barrier-threshold 5",
-            softcbf(&["simulate", "--barrier-threshold", "5"]),
+            vec!["simulate", "--barrier-threshold", "5"],
             "--barrier-threshold",
         ),
     ];
-    for (what, (code, _, stderr), needle) in cases {
+    for (args, needle) in cases {
+        let (code, _, stderr) = softcbf(&args);
+        let what = args.join(" ");
         assert!(code == 1 || code == 2, "{what}: exit {code}\n{stderr}");
         assert!(
             stderr.contains(needle),

@@ -179,7 +179,7 @@ fn paper_set_point_barriers_held_against_the_emulator() {
     assert_eq!(record.len() as u64, s.ticks);
     let header = record.columns().header();
     assert!(header.starts_with("t,q0,q1,q2,q3,q4,q5,qd0,"), "{header}");
-    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read_us,compute_us,write_us,late_us,overrun,clamp_low,clamp_high,age_us,period_us,hold_us,gain_scale,f0,f1,f2,f3,f4,f5"), "{header}");
+    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read_us,compute_us,write_us,late_us,overrun,clamp_low,clamp_high,age_us,period_us,hold_us,gain_scale,f0,f1,f2,f3,f4,f5,qpred0,qpred1,qpred2,qpred3,qpred4,qpred5"), "{header}");
     for (k, row) in out.log.rows.iter().enumerate() {
         assert_eq!(record.row(k).unwrap().q, &row.1[..], "row {k}");
     }
@@ -232,17 +232,12 @@ fn assert_commands_from_fresh_readings(out: &Outcome) {
             continue;
         }
         let row = fresh_rows[j - 1];
-        let angles: Vec<f64> = replies
-            .iter()
-            .map(|r| map.angle_from_position(r.state.position))
-            .collect();
-        let mut q = vec![0.0; 6];
-        map.q_from_angles(&angles, &mut q);
+        let q = q_of(&map, replies);
         assert_eq!(
             q, row.1,
             "command {j}: q used ≠ q of the last intact reading"
         );
-        let tensions = &row.3[FIXED_EXTRA..];
+        let tensions = &row.3[FIXED_EXTRA..FIXED_EXTRA + 6];
         for (k, (id, current)) in out.bus.goal_writes[w].1.iter().enumerate() {
             assert_eq!(*id, replies[k].id);
             assert_eq!(
@@ -347,4 +342,62 @@ fn velocity_from_filtered_differences_also_holds_the_barriers() {
         min >= BARRIER_TOLERANCE_UNCORRECTED,
         "minimum barrier {min}"
     );
+}
+
+/// `q` from one sync read's replies, as the loop maps it.
+fn q_of(map: &TendonMap, replies: &[softcbf::hardware::emulator::StateReply]) -> Vec<f64> {
+    let angles: Vec<f64> = replies
+        .iter()
+        .map(|r| map.angle_from_position(r.state.position))
+        .collect();
+    let mut q = vec![0.0; 6];
+    map.q_from_angles(&angles, &mut q);
+    q
+}
+
+#[test]
+fn late_readings_are_predicted_to_when_the_command_lands() {
+    // Every reply 5 ms late: a reading of six servos takes 30 ms, and is 33 ms old when
+    // the command computed from it reaches the servos. The loop then reads again at once
+    // (every tick overruns), so the next reading shows the state at that moment.
+    let faults = Faults {
+        delay: Duration::from_millis(5),
+        ..Faults::default()
+    };
+    let out = run_against_emulator(faults, 2.0);
+    println!("{:#?}", out.summary);
+    assert_eq!(out.summary.stop, StopReason::Duration);
+    assert!(out.summary.max_age > 0.030, "age {}", out.summary.max_age);
+    let map = TendonMap::new(&example()).unwrap();
+    let fresh_rows: Vec<_> = out.log.rows.iter().filter(|r| r.3[0] == 1.0).collect();
+    let commands: Vec<usize> = (0..out.bus.goal_writes.len())
+        .filter(|&w| out.bus.goal_writes[w].1.iter().any(|(_, c)| *c != 0))
+        .collect();
+    let (mut predicted_error, mut stale_error, mut compared) = (0.0, 0.0, 0);
+    for (j, &w) in commands.iter().enumerate().skip(1) {
+        let Some(read) = out.bus.read_before_write[w] else {
+            continue;
+        };
+        let Some((_, next)) = out.bus.state_reads.get(read + 1) else {
+            continue;
+        };
+        let landed = q_of(&map, next);
+        let row = fresh_rows[j - 1];
+        let predicted = &row.3[FIXED_EXTRA + 6..FIXED_EXTRA + 12];
+        for i in 0..6 {
+            predicted_error += (predicted[i] - landed[i]).powi(2);
+            stale_error += (row.1[i] - landed[i]).powi(2);
+        }
+        compared += 1;
+    }
+    let rms = |sum: f64| (sum / (6 * compared) as f64).sqrt();
+    println!(
+        "{compared} commands: RMS error of the predicted state {:.2e} m, of the state read {:.2e} m",
+        rms(predicted_error),
+        rms(stale_error)
+    );
+    assert!(compared > 40, "{compared} commands compared");
+    // The position resolution of the servos is 0.07 mm of tendon.
+    assert!(rms(predicted_error) < 3e-4, "{:e}", rms(predicted_error));
+    assert!(rms(predicted_error) < 0.2 * rms(stale_error));
 }

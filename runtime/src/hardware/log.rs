@@ -16,17 +16,17 @@ pub trait RunLog {
     fn flush(&mut self) -> Result<(), String>;
 }
 
-/// Names of the extra log columns for `servos` servos: `fresh` (1: command from this
+/// Names of the extra log columns for `servos` servos and `nq` coordinates: `fresh` (1: command from this
 /// tick's reading), `status` (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP
 /// failed, 4 invalid state), `attempts` (sync reads), `comm_errors` (held ticks in a row),
 /// `read_us`, `compute_us`, `write_us` (bus wait, software, write), `late_us` (start after
 /// schedule), `overrun` (0/1), `clamp_low`, `clamp_high`, `age_us` (age of the reading when
 /// the command reaches the servos), `period_us` (time since the previous command), `hold_us`
 /// (the hold period the controller assumed), `gain_scale` (the factor of the HOCBF gains,
-/// `nominal period / hold_us`), then `f0…` (tensions sent \[N\]). `q`, `q̇` and
-/// `b` are at the state read; the command was computed at that state predicted `age_us`
-/// ahead.
-pub fn extra_columns(servos: usize) -> Vec<String> {
+/// `nominal period / hold_us`), then `f0…` (tensions sent \[N\]), then `qpred0…` (the `q`
+/// the command was computed at: the state read, predicted `age_us` ahead). `q`, `q̇` and
+/// `b` are at the state read.
+pub fn extra_columns(servos: usize, nq: usize) -> Vec<String> {
     let mut names: Vec<String> = [
         "fresh",
         "status",
@@ -48,6 +48,7 @@ pub fn extra_columns(servos: usize) -> Vec<String> {
     .map(|s| s.to_string())
     .collect();
     names.extend((0..servos).map(|k| format!("f{k}")));
+    names.extend((0..nq).map(|k| format!("qpred{k}")));
     names
 }
 
@@ -72,7 +73,7 @@ impl RunLog for CsvLog {
 
 /// Creates `dir/trajectory.csv` for a run of `model` on `servos` servos.
 pub fn open(dir: &Path, model: &Model, servos: usize) -> Result<CsvLog, String> {
-    let names = extra_columns(servos);
+    let names = extra_columns(servos, model.nq());
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let columns = Columns::new(model.nq(), model.nb(), &names).map_err(|e| e.to_string())?;
     let path = dir.join("trajectory.csv");

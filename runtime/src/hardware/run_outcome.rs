@@ -27,8 +27,8 @@ pub enum StopReason {
         /// The minimum \[Hz\].
         min: f64,
     },
-    /// No instruction reached the servos for longer than their Bus Watchdog: they stopped
-    /// by themselves, and the run with them.
+    /// No instruction reached the servos for most of their Bus Watchdog (80 %): they may
+    /// have stopped by themselves, and the run stops with them.
     WatchdogExpired {
         /// The pause \[s\].
         gap: f64,
@@ -66,8 +66,8 @@ impl std::fmt::Display for StopReason {
             ),
             StopReason::WatchdogExpired { gap, watchdog } => write!(
                 f,
-                "the loop paused {:.0} ms, longer than the servos' Bus Watchdog ({:.0} ms): \
-                 they stopped by themselves",
+                "the loop paused {:.0} ms between instructions, too close to the servos' Bus \
+                 Watchdog ({:.0} ms) to know whether they stopped by themselves",
                 gap * 1000.0,
                 watchdog * 1000.0
             ),

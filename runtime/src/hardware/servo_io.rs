@@ -96,9 +96,15 @@ pub enum StartError {
     /// The state could not be read.
     #[error("cannot read the servos' state: {0}")]
     State(#[source] BusError),
-    /// The measured state is not finite.
-    #[error("the measured state is not finite: q = {q:?}, q̇ = {qd:?}")]
-    NonFinite {
+    /// The measured state lies outside the model's domain (not finite, bent or stretched
+    /// beyond what the model describes): a calibration or a robot file that does not fit.
+    #[error(
+        "the measured state lies outside the model ({problem}): q = {q:?}, q̇ = {qd:?}; check \
+         the calibration (zero_angle_deg, direction) and the robot file"
+    )]
+    OutOfDomain {
+        /// What is wrong.
+        problem: String,
         /// Measured `q`.
         q: Vec<f64>,
         /// Measured `q̇`.
