@@ -130,6 +130,13 @@ impl Drop for Emulator {
     }
 }
 
+/// Reads ten bytes of a child's standard output and closes it, as `| head -c 10` does.
+fn head_c_10(child: &mut Child) {
+    let mut stdout = child.stdout.take().expect("a piped standard output");
+    let mut head = [0u8; 10];
+    stdout.read_exact(&mut head).unwrap();
+}
+
 /// A run started in the background with its output collected.
 struct RunProcess {
     child: Child,
@@ -383,14 +390,7 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut head = [0u8; 10];
-    child
-        .stdout
-        .as_mut()
-        .unwrap()
-        .read_exact(&mut head)
-        .unwrap();
-    drop(child.stdout.take());
+    head_c_10(&mut child);
     let (code, _, stderr) = finish_run(
         RunProcess {
             child,
@@ -432,6 +432,21 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
     assert!(whole_rows(&out.join("trajectory.csv"), false) >= 25);
     assert!(out.join("figure.png").exists());
     assert_torque_off(&emulator.port, "> /dev/full");
+
+    // A figure that cannot be written (a directory in its place) is an error too.
+    let out = root.join("figure");
+    std::fs::create_dir_all(out.join("figure.png")).unwrap();
+    let run = start_run(
+        &emulator.port,
+        &out,
+        &["--duration", "1", "--set-point", INSIDE],
+    );
+    let (code, stdout, stderr) = finish_run(run, "figure.png a directory");
+    assert_eq!(code, 1, "{stdout}\n{stderr}");
+    assert!(stdout.contains("verdict: safe"), "{stdout}");
+    assert!(stderr.contains("figures could not be written"), "{stderr}");
+    assert!(whole_rows(&out.join("trajectory.csv"), false) >= 25);
+    assert_torque_off(&emulator.port, "figure.png a directory");
     std::fs::remove_dir_all(&root).unwrap();
 }
 
@@ -654,19 +669,25 @@ fn model_and_simulate_report_an_output_they_cannot_write() {
     assert!(out.join("summary.json").exists());
     std::fs::remove_dir_all(&out).unwrap();
 
+    // A figure that cannot be written is an error, as in `run`.
+    let out = temp_dir("simulate-figure");
+    std::fs::create_dir_all(out.join("figure.png")).unwrap();
+    let output = Command::new(BIN)
+        .args(["simulate", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("figure.png"), "{stderr}");
+    std::fs::remove_dir_all(&out).unwrap();
+
     // A closed pipe is the reader's choice, not an error.
     let mut child = Command::new(BIN)
         .args(["model", "--q", "0.01,0,0,0,0,0"])
         .stdout(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut head = [0u8; 10];
-    child
-        .stdout
-        .as_mut()
-        .unwrap()
-        .read_exact(&mut head)
-        .unwrap();
-    drop(child.stdout.take());
+    head_c_10(&mut child);
     assert_eq!(child.wait().unwrap().code(), Some(0));
 }

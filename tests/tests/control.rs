@@ -328,6 +328,35 @@ fn non_finite_state_gives_the_safe_command() {
     );
 }
 
+#[test]
+fn a_state_outside_the_model_gives_the_safe_command() {
+    // Finite, but no robot: a bend of 0.3 turns past three quarters, δL of 1e3 rest
+    // lengths, a speed of 1 km/s. The model would still produce numbers (or NaN, as
+    // `softcbf model --q 1e308,…` once printed); the tick refuses them.
+    let model = paper_model();
+    let nq = model.nq();
+    let d = model.robot.modules[1].tendon_radius;
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    let zero = zeros(nq);
+    let reference = regulation(&zero, &zero);
+    let mut bent = zeros(nq);
+    bent[3] = 1.8 * std::f64::consts::PI * d;
+    let mut stretched = zeros(nq);
+    stretched[2] = 1e3 * model.robot.modules[0].rest_length;
+    let mut fast = zeros(nq);
+    fast[1] = 1e3;
+    for (q, qd) in [(&bent, &zero), (&stretched, &zero), (&zero, &fast)] {
+        let status = tick(&model, &mut controller, q, qd, reference);
+        assert_eq!(status, TickStatus::InvalidState(InvalidState::OutOfDomain));
+        assert!(status.is_fallback());
+        assert!(controller.tau().iter().all(|&t| t == 0.0));
+    }
+    // Just inside the domain the tick computes a command.
+    bent[3] = 1.4 * std::f64::consts::PI * d;
+    let status = tick(&model, &mut controller, &bent, &zero, reference);
+    assert!(!status.is_fallback(), "{status:?}");
+}
+
 /// The corner barriers of a module always leave room (extending the module raises all its
 /// corners), so an infeasible set is constructed from the controller's own rows: every row
 /// together with its negation shifted by one, `a τ ≥ b` and `−a τ ≥ −b + 1`.

@@ -401,3 +401,25 @@ fn late_readings_are_predicted_to_when_the_command_lands() {
     assert!(rms(predicted_error) < 3e-4, "{:e}", rms(predicted_error));
     assert!(rms(predicted_error) < 0.2 * rms(stale_error));
 }
+
+#[test]
+fn the_safe_start_retries_missed_replies_like_the_loop() {
+    // A quarter of all status packets lost: each start-up transaction (pings, register
+    // writes, the first reading) is tried up to (1 + retries) · max_consecutive_errors = 10
+    // times, so the start succeeds (a failed start would be an error, and `run_with`
+    // unwraps the summary); the loop itself then holds many ticks and may stop on them.
+    let faults = Faults {
+        drop: 0.25,
+        seed: 11,
+        ..Faults::default()
+    };
+    let out = run_against_emulator(faults, 1.0);
+    println!("{:#?}", out.summary);
+    assert!(out.summary.ticks > 0);
+    assert!(
+        out.bus.fates[2] > 10,
+        "replies dropped: {:?}",
+        out.bus.fates
+    );
+    assert!(out.bus.torque.iter().all(|on| !on));
+}
