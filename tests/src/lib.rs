@@ -4,3 +4,4 @@
 pub mod alloc;
 pub mod highprec;
 pub mod reference;
+pub mod robots;

@@ -7,7 +7,6 @@
 //! e-Manual's (XM430-W350 control table; "Protocol 2.0": error numbers, instruction
 //! formats and example packets), written out here rather than taken from the code.
 
-use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, mpsc};
 use std::thread;
@@ -85,11 +84,7 @@ const IDS: [u8; 6] = [1, 2, 3, 4, 5, 6];
 const BAUD: u32 = 1_000_000;
 
 fn robot() -> Robot {
-    Robot::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/hardware-example.toml"
-    )))
-    .unwrap()
+    softcbf_tests::robots::hardware_example()
 }
 
 fn model() -> &'static Model {

@@ -1,7 +1,6 @@
 //! The servo emulator's Protocol 2.0 semantics and pacing, driven through the bus client
 //! over a pseudo-terminal: what a real X-series servo would answer.
 
-use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, mpsc};
 use std::thread;
@@ -11,7 +10,6 @@ use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::control_table as table;
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, wire_time};
 use softcbf::protocol::{BROADCAST_ID, Bus, BusError, StatusError};
-use softcbf_codegen::robot::Robot;
 
 /// Runs `body` against an emulator of the example robot at `baud`.
 fn with_emulator(baud: u32, body: impl FnOnce(&mut Bus<TTYPort>)) {
@@ -24,11 +22,7 @@ fn with_logged_emulator(
     log: Arc<Mutex<EmulatorLog>>,
     body: impl FnOnce(&mut Bus<TTYPort>),
 ) {
-    let path = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/hardware-example.toml"
-    ));
-    let robot = Robot::load(path).unwrap();
+    let robot = softcbf_tests::robots::hardware_example();
     let (mut master, slave) = TTYPort::pair().unwrap();
     master.set_timeout(Duration::from_millis(20)).unwrap();
     let name = slave.name().unwrap();

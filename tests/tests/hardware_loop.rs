@@ -22,11 +22,7 @@ use softcbf::record::Record;
 use softcbf_codegen::robot::Robot;
 
 fn example() -> Robot {
-    Robot::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/hardware-example.toml"
-    )))
-    .unwrap()
+    softcbf_tests::robots::hardware_example()
 }
 
 /// One loop against one emulator at a time: the timing of the loop is part of the result.

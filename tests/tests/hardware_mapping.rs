@@ -2,18 +2,13 @@
 //! computations on the example hardware robot, and round trips.
 
 use std::f64::consts::PI;
-use std::path::Path;
 
 use softcbf::hardware::mapping::{Clamps, TendonMap};
 use softcbf_codegen::robot::Robot;
 use softcbf_tests::reference::SplitMix;
 
 fn example() -> (Robot, TendonMap) {
-    let robot = Robot::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/hardware-example.toml"
-    )))
-    .unwrap();
+    let robot = softcbf_tests::robots::hardware_example();
     let map = TendonMap::new(&robot).unwrap();
     (robot, map)
 }

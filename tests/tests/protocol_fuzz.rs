@@ -4,7 +4,6 @@
 //!
 //! Case counts are bounded so the file runs in a few seconds optimized.
 
-use std::path::Path;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -25,11 +24,7 @@ use softcbf_codegen::robot::Robot;
 const MODEL_1020: [u8; 2] = [0xFC, 0x03];
 
 fn robot() -> Robot {
-    Robot::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/hardware-example.toml"
-    )))
-    .unwrap()
+    softcbf_tests::robots::hardware_example()
 }
 
 fn model() -> &'static Model {
