@@ -60,6 +60,35 @@ pub trait GeneratedModel: Sync {
         jacobian: &mut [f64],
         jdot_qd: &mut [f64],
     );
+    /// Everything the control tick needs from the model at one state, with the segment
+    /// kinematics and the small-θ series evaluated once: the joint terms of
+    /// [`GeneratedModel::joint_terms`] and the barrier terms of
+    /// [`GeneratedModel::barrier_terms`], same layouts.
+    #[allow(clippy::too_many_arguments)]
+    fn model_terms(
+        &self,
+        p: &[f64],
+        q: &[f64],
+        qd: &[f64],
+        rotation: &mut [[[f64; 3]; 3]],
+        translation: &mut [[f64; 3]],
+        motion_subspace: &mut [[[f64; 3]; 6]],
+        bias_acceleration: &mut [[f64; 6]],
+        barriers: &mut [f64],
+        jacobian: &mut [f64],
+        jdot_qd: &mut [f64],
+    ) {
+        self.joint_terms(
+            p,
+            q,
+            qd,
+            rotation,
+            translation,
+            motion_subspace,
+            bias_acceleration,
+        );
+        self.barrier_terms(p, q, qd, barriers, jacobian, jdot_qd);
+    }
     /// Per-segment `R_i`, `t_i`, motion subspace `S_i` and `c_J,i = Ṡ_i q̇_i`.
     #[allow(clippy::too_many_arguments)]
     fn joint_terms(
