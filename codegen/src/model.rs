@@ -58,6 +58,8 @@ struct ModuleExprs {
     translation: [Id; 3],
     /// `c_ij`: height of each corner above the bottom plate's plane.
     corner_heights: Vec<Id>,
+    /// The bending coordinates `a = Δx/d`, `b = Δy/d` and `u = a² + b² = θ²`.
+    bend: [Id; 3],
     /// `ε_ij`.
     margins: Vec<Id>,
 }
@@ -154,12 +156,14 @@ pub fn build(structure: &Structure) -> SymbolicModel {
             corner_heights.push(arena.mul(fs, height));
             margins.push(param(Param::Margin(i, j)));
         }
+        let bend = [a, b, u];
         modules.push(ModuleExprs {
             q,
             qd,
             rotation,
             translation,
             corner_heights,
+            bend,
             margins,
         });
     }
@@ -286,66 +290,60 @@ impl SymbolicModel {
 
     /// Joint quantities of module `i` for the recursive dynamics: the motion subspace `S`
     /// (6×3, rows ω then v, tip coordinates) and `c_J = Ṡ q̇` (apparent derivative).
+    ///
+    /// The tip's body twist `V = S q̇` has the angular part in closed form: `R = exp([w]×)`
+    /// with `w = (−b, a, 0)`, so `Rᵀ Ṙ = [J_r(w) ẇ]×` with the right Jacobian
+    /// `J_r = I − f_c [w]× + g [w]×²`, `g = (θ − sin θ)/θ³ = f_c + 2 f_s'` (from
+    /// `2u f_s' = cos θ − f_s`). With `w·ẇ = aȧ + bḃ` and `w × ẇ = (aḃ − bȧ) ẑ` this is
+    /// `ω = f_s ẇ + g (aȧ + bḃ) w + f_c (bȧ − aḃ) ẑ` (`1 − g u = f_s`). The linear part
+    /// is `Rᵀ ṫ`.
+    /// `S` is `∂V/∂q̇` and `c_J` the time derivative of `V` at `q̈ = 0`.
     pub fn joint_exprs(&mut self, i: usize) -> ([[Id; 3]; 6], [Id; 6]) {
         let m = &self.modules[i];
-        let (q, qd, rotation, translation) = (m.q, m.qd, m.rotation, m.translation);
-        let mut subspace = [[self.arena.constant(0.0); 3]; 6];
-        for (k, &coordinate) in q.iter().enumerate() {
-            let mut d_rotation = [[self.arena.constant(0.0); 3]; 3];
-            for r in 0..3 {
-                for c in 0..3 {
-                    d_rotation[r][c] =
-                        self.diff
-                            .derivative(&mut self.arena, rotation[r][c], coordinate);
-                }
-            }
-            // W = Rᵀ ∂R/∂q_k is skew; ω = vee(W) = (W₂₁, W₀₂, W₁₀).
-            let column = |arena: &mut Arena, row: usize, col: usize| -> Id {
-                let left: Vec<Id> = (0..3).map(|s| rotation[s][row]).collect();
-                let right: Vec<Id> = (0..3).map(|s| d_rotation[s][col]).collect();
-                arena.dot(&left, &right)
-            };
-            subspace[0][k] = column(&mut self.arena, 2, 1);
-            subspace[1][k] = column(&mut self.arena, 0, 2);
-            subspace[2][k] = column(&mut self.arena, 1, 0);
-            let d_translation: Vec<Id> = translation
-                .iter()
-                .map(|&t| self.diff.derivative(&mut self.arena, t, coordinate))
-                .collect();
-            for r in 0..3 {
-                let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
-                subspace[3 + r][k] = self.arena.dot(&left, &d_translation);
-            }
-        }
-        // Body twist V = S q̇ = [vee(Rᵀ Ṙ); Rᵀ ṫ] by forward-mode tangents, then c_J = V̇ at q̈ = 0.
-        let mut rotation_rate = [[self.arena.constant(0.0); 3]; 3];
-        for r in 0..3 {
-            for c in 0..3 {
-                rotation_rate[r][c] = self.tangent.tangent(&mut self.arena, rotation[r][c]);
-            }
-        }
+        let (qd, rotation, translation, [a, b, u]) = (m.qd, m.rotation, m.translation, m.bend);
+        let arena = &mut self.arena;
+        let a_rate = self.tangent.tangent(arena, a);
+        let b_rate = self.tangent.tangent(arena, b);
+        let fs = arena.fs(u);
+        let fc = arena.fc(u);
+        let fs1 = arena.analytic(crate::expr::Analytic::Fs, 1, u);
+        let two = arena.constant(2.0);
+        let two_fs1 = arena.mul(two, fs1);
+        let g = arena.add(fc, two_fs1);
+        let a_a_rate = arena.mul(a, a_rate);
+        let b_b_rate = arena.mul(b, b_rate);
+        let radial_rate = arena.add(a_a_rate, b_b_rate);
+        let radial = arena.mul(g, radial_rate);
+        let b_a_rate = arena.mul(b, a_rate);
+        let a_b_rate = arena.mul(a, b_rate);
+        let twist_rate = arena.sub(b_a_rate, a_b_rate);
+        // ω_x = −f_s ḃ − g (aȧ + bḃ) b, ω_y = f_s ȧ + g (aȧ + bḃ) a.
+        let x_along = arena.mul(fs, b_rate);
+        let x_radial = arena.mul(radial, b);
+        let x_sum = arena.add(x_along, x_radial);
+        let y_along = arena.mul(fs, a_rate);
+        let y_radial = arena.mul(radial, a);
+        let angular = [
+            arena.neg(x_sum),
+            arena.add(y_along, y_radial),
+            arena.mul(fc, twist_rate),
+        ];
+        let zero = self.arena.constant(0.0);
+        let mut twist = [angular[0], angular[1], angular[2], zero, zero, zero];
         let translation_rate: Vec<Id> = translation
             .iter()
             .map(|&t| self.tangent.tangent(&mut self.arena, t))
             .collect();
-        let body = |arena: &mut Arena, row: usize, col: usize| -> Id {
-            let left: Vec<Id> = (0..3).map(|s| rotation[s][row]).collect();
-            let right: Vec<Id> = (0..3).map(|s| rotation_rate[s][col]).collect();
-            arena.dot(&left, &right)
-        };
-        let mut twist = [
-            body(&mut self.arena, 2, 1),
-            body(&mut self.arena, 0, 2),
-            body(&mut self.arena, 1, 0),
-            self.arena.constant(0.0),
-            self.arena.constant(0.0),
-            self.arena.constant(0.0),
-        ];
         for r in 0..3 {
             let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
             twist[3 + r] = self.arena.dot(&left, &translation_rate);
         }
-        let _ = qd;
+        let mut subspace = [[self.arena.constant(0.0); 3]; 6];
+        for (r, row) in subspace.iter_mut().enumerate() {
+            for (k, entry) in row.iter_mut().enumerate() {
+                *entry = self.diff.derivative(&mut self.arena, twist[r], qd[k]);
+            }
+        }
         let bias = twist.map(|v| self.tangent.tangent(&mut self.arena, v));
         (subspace, bias)
     }
