@@ -128,6 +128,4 @@ fn main() {
         entries.join(", ")
     ));
     std::fs::write(out_dir.join("models.rs"), registry).expect("OUT_DIR is writable");
-    let analytic = softcbf_codegen::emit::format_file(softcbf_codegen::analytic::emit(6));
-    std::fs::write(out_dir.join("analytic.rs"), analytic).expect("OUT_DIR is writable");
 }

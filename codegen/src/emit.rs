@@ -1,5 +1,9 @@
 //! Emission of straight-line programs as Rust functions through syn/quote/prettyplease.
-//! One `let` per scheduled node; analytic nodes share one call per distinct argument.
+//! Temporaries are numbered in program order; small single-use terms are written inline.
+//!
+//! Every rewrite here leaves the computed numbers bit for bit as the program says:
+//! `a + (−b)` is written `a − b`, `−(a·b)` as `−a * b`, and the operands of one sum or
+//! product may swap (both exact in IEEE arithmetic); inlining never reorders roundings.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -8,7 +12,10 @@ use quote::{format_ident, quote};
 
 use crate::analytic;
 use crate::expr::{Analytic, Arena, Id, Node};
-use crate::program::{OpCount, op_count, schedule};
+use crate::program::{OpCount, Program, op_count, schedule};
+
+/// Most operations one emitted statement may hold once single-use terms are inlined.
+const STATEMENT_OPS: usize = 4;
 
 /// A function to emit: inputs bound to symbols, outputs written to places.
 pub struct FunctionSpec {
@@ -46,12 +53,326 @@ pub fn literal(value: f64) -> TokenStream {
     }
 }
 
-fn temp(id: Id) -> Ident {
-    format_ident!("t{}", id.0)
+/// How tightly a written expression binds, loosest first.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Precedence {
+    Sum,
+    Product,
+    Unary,
+    Atom,
 }
 
-fn analytic_arrays(arg: Id) -> (Ident, Ident) {
-    (format_ident!("fs_{}", arg.0), format_ident!("fc_{}", arg.0))
+/// An expression as written, with how tightly it binds.
+#[derive(Clone)]
+struct Written {
+    tokens: TokenStream,
+    precedence: Precedence,
+}
+
+impl Written {
+    fn atom(tokens: TokenStream) -> Written {
+        Written {
+            tokens,
+            precedence: Precedence::Atom,
+        }
+    }
+
+    /// As an operand that needs at least `precedence` (parenthesized otherwise).
+    fn at_least(&self, precedence: Precedence) -> TokenStream {
+        let tokens = &self.tokens;
+        if self.precedence >= precedence {
+            quote!(#tokens)
+        } else {
+            quote!((#tokens))
+        }
+    }
+
+    /// As the right operand of a left-associative operator of `precedence`.
+    fn right_of(&self, precedence: Precedence) -> TokenStream {
+        let tokens = &self.tokens;
+        if self.precedence > precedence && self.precedence != Precedence::Unary {
+            quote!(#tokens)
+        } else {
+            quote!((#tokens))
+        }
+    }
+}
+
+/// Which nodes get a statement of their own and which are written inside their one user.
+struct Plan<'a> {
+    arena: &'a Arena,
+    program: &'a Program,
+    inlined: BTreeSet<Id>,
+    temps: BTreeMap<Id, Ident>,
+    analytic_names: BTreeMap<Id, (Ident, Ident)>,
+    bound: BTreeSet<Id>,
+}
+
+impl Plan<'_> {
+    fn uses(&self, id: Id) -> usize {
+        self.program.uses.get(&id).copied().unwrap_or(0)
+    }
+
+    /// Whether `id` is a kind of node that reads well inside another expression.
+    fn inlinable(&self, id: Id) -> bool {
+        matches!(
+            self.arena.node(id),
+            Node::Add(..) | Node::Mul(..) | Node::Div(..) | Node::Neg(_) | Node::Powi(..)
+        ) && !self.program.absorbed.contains(&id)
+    }
+
+    /// Operations written in the expression of `id` once its inlined terms are counted.
+    fn written_ops(&self, id: Id, ops: &BTreeMap<Id, usize>) -> usize {
+        ops.get(&id).copied().unwrap_or(0)
+    }
+
+    /// Decides, children first, which single-use terms are written inside their user.
+    fn decide(&mut self, outputs: &[Id]) {
+        let mut ops: BTreeMap<Id, usize> = BTreeMap::new();
+        for &id in &self.program.steps {
+            let node = self.arena.node(id);
+            let own = match node {
+                Node::Analytic { .. } => continue,
+                _ if self.program.absorbed.contains(&id) => 0,
+                Node::Powi(_, n) if (2..=4).contains(&n) => (n - 1) as usize,
+                _ => 1,
+            };
+            let mut total = own;
+            // The terms a parent could take in: its operands, and the operand of an
+            // absorbed negation it subtracts.
+            let takes_in = matches!(
+                node,
+                Node::Add(..) | Node::Mul(..) | Node::Div(..) | Node::Neg(_)
+            ) && !self.program.absorbed.contains(&id);
+            for child in node.children() {
+                let (candidate, single) = match self.arena.node(child) {
+                    Node::Neg(x) if self.program.absorbed.contains(&child) => {
+                        (x, self.uses(child) == 1)
+                    }
+                    _ => (child, true),
+                };
+                if self.program.absorbed.contains(&child) && !single {
+                    continue;
+                }
+                let candidate_ops = self.written_ops(candidate, &ops);
+                if takes_in
+                    && single
+                    && self.uses(candidate) == 1
+                    && self.inlinable(candidate)
+                    && total + candidate_ops <= STATEMENT_OPS
+                {
+                    self.inlined.insert(candidate);
+                    total += candidate_ops;
+                }
+            }
+            ops.insert(id, total);
+        }
+        for &id in outputs {
+            if self.uses(id) == 1
+                && self.inlinable(id)
+                && self.written_ops(id, &ops) <= STATEMENT_OPS
+            {
+                self.inlined.insert(id);
+            }
+        }
+    }
+
+    /// The expression that gives the value of `id` where it is read.
+    fn read(&self, id: Id) -> Written {
+        match self.arena.node(id) {
+            Node::Const(bits) => {
+                let value = f64::from_bits(bits);
+                let magnitude = Literal::f64_unsuffixed(value.abs());
+                if value.is_sign_negative() && value != 0.0 {
+                    Written {
+                        tokens: quote!(-#magnitude),
+                        precedence: Precedence::Unary,
+                    }
+                } else {
+                    Written::atom(quote!(#magnitude))
+                }
+            }
+            Node::Symbol(s) => {
+                let name = Ident::new(self.arena.symbol_name(s), Span::call_site());
+                Written::atom(quote!(#name))
+            }
+            Node::Analytic { func, order, arg } => {
+                let (fs, fc) = &self.analytic_names[&arg];
+                let index = Literal::usize_unsuffixed(usize::from(order));
+                match func {
+                    Analytic::Fs => Written::atom(quote!(#fs[#index])),
+                    Analytic::Fc => Written::atom(quote!(#fc[#index])),
+                }
+            }
+            _ if self.inlined.contains(&id) => self.expression(id),
+            _ => {
+                let t = &self.temps[&id];
+                Written::atom(quote!(#t))
+            }
+        }
+    }
+
+    /// One operand of a sum: whether it is subtracted, and what.
+    fn term(&self, id: Id) -> (bool, Written) {
+        match self.arena.node(id) {
+            Node::Neg(x)
+                if self.program.absorbed.contains(&id)
+                    || !(self.inlined.contains(&x) || self.inlined.contains(&id)) =>
+            {
+                (true, self.read(x))
+            }
+            Node::Const(bits) if f64::from_bits(bits) < 0.0 => {
+                let magnitude = Literal::f64_unsuffixed(-f64::from_bits(bits));
+                (true, Written::atom(quote!(#magnitude)))
+            }
+            _ => (false, self.read(id)),
+        }
+    }
+
+    fn product(&self, a: Id, b: Id, negated: bool) -> Written {
+        let (mut left, mut right) = (self.read(a), self.read(b));
+        let left_is_constant = matches!(self.arena.node(a), Node::Const(_));
+        // A product inside a product reads without parentheses on the left.
+        if !left_is_constant
+            && right.precedence == Precedence::Product
+            && left.precedence == Precedence::Atom
+        {
+            std::mem::swap(&mut left, &mut right);
+        }
+        if negated {
+            if left.precedence == Precedence::Atom {
+                let tokens = &left.tokens;
+                left = Written {
+                    tokens: quote!(-#tokens),
+                    precedence: Precedence::Unary,
+                };
+            } else {
+                let (l, r) = (
+                    left.at_least(Precedence::Product),
+                    right.right_of(Precedence::Product),
+                );
+                return Written {
+                    tokens: quote!(-(#l * #r)),
+                    precedence: Precedence::Unary,
+                };
+            }
+        }
+        let (l, r) = (
+            left.at_least(Precedence::Product),
+            right.right_of(Precedence::Product),
+        );
+        Written {
+            tokens: quote!(#l * #r),
+            precedence: Precedence::Product,
+        }
+    }
+
+    fn quotient(&self, a: Id, b: Id, negated: bool) -> Written {
+        let mut left = self.read(a);
+        if negated {
+            if left.precedence == Precedence::Atom {
+                let tokens = &left.tokens;
+                left = Written {
+                    tokens: quote!(-#tokens),
+                    precedence: Precedence::Unary,
+                };
+            } else {
+                let l = left.at_least(Precedence::Product);
+                let r = self.read(b).right_of(Precedence::Product);
+                return Written {
+                    tokens: quote!(-(#l / #r)),
+                    precedence: Precedence::Unary,
+                };
+            }
+        }
+        let l = left.at_least(Precedence::Product);
+        let r = self.read(b).right_of(Precedence::Product);
+        Written {
+            tokens: quote!(#l / #r),
+            precedence: Precedence::Product,
+        }
+    }
+
+    /// The expression computing `id` from its operands.
+    fn expression(&self, id: Id) -> Written {
+        match self.arena.node(id) {
+            Node::Add(a, b) => {
+                let (mut first, mut second) = (self.term(a), self.term(b));
+                // Added terms first; a sum on the left needs no parentheses.
+                if (first.0 && !second.0)
+                    || (first.0 == second.0
+                        && second.1.precedence == Precedence::Sum
+                        && first.1.precedence != Precedence::Sum)
+                {
+                    std::mem::swap(&mut first, &mut second);
+                }
+                let left = if first.0 {
+                    let tokens = first.1.at_least(Precedence::Unary);
+                    quote!(-#tokens)
+                } else {
+                    first.1.at_least(Precedence::Sum)
+                };
+                let right = second.1.right_of(Precedence::Sum);
+                let tokens = if second.0 {
+                    quote!(#left - #right)
+                } else {
+                    quote!(#left + #right)
+                };
+                Written {
+                    tokens,
+                    precedence: Precedence::Sum,
+                }
+            }
+            Node::Mul(a, b) => self.product(a, b, false),
+            Node::Div(a, b) => self.quotient(a, b, false),
+            Node::Neg(x) => match self.arena.node(x) {
+                Node::Mul(a, b) if self.inlined.contains(&x) => self.product(a, b, true),
+                Node::Div(a, b) if self.inlined.contains(&x) => self.quotient(a, b, true),
+                _ => {
+                    let operand = self.read(x).right_of(Precedence::Unary);
+                    Written {
+                        tokens: quote!(-#operand),
+                        precedence: Precedence::Unary,
+                    }
+                }
+            },
+            Node::Powi(a, n) => {
+                let a = self.read(a).at_least(Precedence::Atom);
+                match n {
+                    2 => Written {
+                        tokens: quote!(#a * #a),
+                        precedence: Precedence::Product,
+                    },
+                    3 => Written {
+                        tokens: quote!(#a * #a * #a),
+                        precedence: Precedence::Product,
+                    },
+                    4 => Written {
+                        tokens: quote!((#a * #a) * (#a * #a)),
+                        precedence: Precedence::Product,
+                    },
+                    -1 => Written {
+                        tokens: quote!(1.0 / #a),
+                        precedence: Precedence::Product,
+                    },
+                    _ => Written::atom(quote!(#a.powi(#n))),
+                }
+            }
+            Node::Sqrt(a) => {
+                let a = self.read(a).at_least(Precedence::Atom);
+                Written::atom(quote!(#a.sqrt()))
+            }
+            Node::Sin(a) => {
+                let a = self.read(a).at_least(Precedence::Atom);
+                Written::atom(quote!(#a.sin()))
+            }
+            Node::Cos(a) => {
+                let a = self.read(a).at_least(Precedence::Atom);
+                Written::atom(quote!(#a.cos()))
+            }
+            Node::Const(_) | Node::Symbol(_) | Node::Analytic { .. } => self.read(id),
+        }
+    }
 }
 
 /// Emits one function.
@@ -59,41 +380,34 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
     let outputs: Vec<Id> = spec.outputs.iter().map(|&(_, id)| id).collect();
     let program = schedule(arena, &outputs);
     let ops = op_count(arena, &program);
+    let mut plan = Plan {
+        arena,
+        program: &program,
+        inlined: BTreeSet::new(),
+        temps: BTreeMap::new(),
+        analytic_names: BTreeMap::new(),
+        bound: BTreeSet::new(),
+    };
+    plan.decide(&outputs);
 
+    // Bind the inputs this program reads, in symbol order.
     let bound: BTreeMap<Id, &TokenStream> = spec
         .inputs
         .iter()
         .map(|(id, source)| (*id, source))
         .collect();
-    let operand = |id: Id| -> TokenStream {
-        match arena.node(id) {
-            Node::Const(bits) => literal(f64::from_bits(bits)),
-            Node::Symbol(s) => {
-                let name = Ident::new(arena.symbol_name(s), Span::call_site());
-                quote!(#name)
-            }
-            _ => {
-                let t = temp(id);
-                quote!(#t)
+    for &id in program.steps.iter().chain(&program.outputs) {
+        let node = arena.node(id);
+        for c in std::iter::once(id).chain(node.children()) {
+            if let Node::Symbol(_) = arena.node(c) {
+                plan.bound.insert(c);
             }
         }
-    };
-
-    // Bind the inputs this program reads.
-    let mut used_symbols = BTreeSet::new();
-    for &id in program.steps.iter().chain(&program.outputs) {
-        let mut note = |c: Id| {
-            if let Node::Symbol(_) = arena.node(c) {
-                used_symbols.insert(c);
-            }
-        };
-        note(id);
-        arena.node(id).children().for_each(note);
     }
     let mut body = TokenStream::new();
-    for symbol in &used_symbols {
+    for symbol in &plan.bound {
         let Node::Symbol(s) = arena.node(*symbol) else {
-            unreachable!()
+            unreachable!("only symbols are bound")
         };
         let name = Ident::new(arena.symbol_name(s), Span::call_site());
         let source = bound
@@ -102,71 +416,33 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
         body.extend(quote!(let #name: f64 = #source;));
     }
 
-    let mut called = BTreeSet::new();
     let mut analytic_orders = BTreeSet::new();
     for &id in &program.steps {
-        let node = arena.node(id);
-        let t = temp(id);
-        let value = match node {
-            Node::Add(a, b) => {
-                let (a, b) = (operand(a), operand(b));
-                quote!(#a + #b)
+        if let Node::Analytic { arg, .. } = arena.node(id) {
+            if plan.analytic_names.contains_key(&arg) {
+                continue;
             }
-            Node::Mul(a, b) => {
-                let (a, b) = (operand(a), operand(b));
-                quote!(#a * #b)
-            }
-            Node::Neg(a) => {
-                let a = operand(a);
-                quote!(-#a)
-            }
-            Node::Div(a, b) => {
-                let (a, b) = (operand(a), operand(b));
-                quote!(#a / #b)
-            }
-            Node::Powi(a, n) => {
-                let a = operand(a);
-                match n {
-                    2 => quote!(#a * #a),
-                    3 => quote!(#a * #a * #a),
-                    4 => quote!((#a * #a) * (#a * #a)),
-                    -1 => quote!(1.0 / #a),
-                    _ => quote!(#a.powi(#n)),
-                }
-            }
-            Node::Sqrt(a) => {
-                let a = operand(a);
-                quote!(#a.sqrt())
-            }
-            Node::Sin(a) => {
-                let a = operand(a);
-                quote!(#a.sin())
-            }
-            Node::Cos(a) => {
-                let a = operand(a);
-                quote!(#a.cos())
-            }
-            Node::Analytic { func, order, arg } => {
-                let (fs, fc) = analytic_arrays(arg);
-                if called.insert(arg) {
-                    let max_order = usize::from(program.analytic_orders[&arg]);
-                    analytic_orders.insert(max_order);
-                    let function = analytic::function_ident(max_order);
-                    let argument = operand(arg);
-                    body.extend(quote!(let (#fs, #fc) = #function(#argument);));
-                }
-                let index = Literal::usize_unsuffixed(usize::from(order));
-                match func {
-                    Analytic::Fs => quote!(#fs[#index]),
-                    Analytic::Fc => quote!(#fc[#index]),
-                }
-            }
-            Node::Const(_) | Node::Symbol(_) => unreachable!("leaves are not scheduled"),
-        };
+            let k = plan.analytic_names.len();
+            let names = (format_ident!("fs_{}", k), format_ident!("fc_{}", k));
+            let max_order = usize::from(program.analytic_orders[&arg]);
+            analytic_orders.insert(max_order);
+            let function = analytic::function_ident(max_order);
+            let argument = plan.read(arg).tokens;
+            let (fs, fc) = &names;
+            body.extend(quote!(let (#fs, #fc) = #function(#argument);));
+            plan.analytic_names.insert(arg, names);
+            continue;
+        }
+        if plan.inlined.contains(&id) || program.absorbed.contains(&id) {
+            continue;
+        }
+        let value = plan.expression(id).tokens;
+        let t = format_ident!("t{}", plan.temps.len());
         body.extend(quote!(let #t: f64 = #value;));
+        plan.temps.insert(id, t);
     }
     for (place, id) in &spec.outputs {
-        let value = operand(*id);
+        let value = plan.read(*id).tokens;
         body.extend(quote!(#place = #value;));
     }
     let epilogue = &spec.epilogue;
@@ -175,7 +451,6 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
     let docs = spec.doc.iter().map(|line| quote!(#[doc = #line]));
     let tokens = quote! {
         #(#docs)*
-        #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
         pub fn #name(#args) {
             #body
             #epilogue

@@ -12,6 +12,40 @@ use crate::layout::{Param, param_layout};
 use crate::program::OpCount;
 use crate::robot::Structure;
 
+/// What a barrier keeps apart (the geometry of each kind: docs/model.md §3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BarrierKind {
+    /// A corner of a module's top plate above the plane of its bottom plate.
+    PlateCorner,
+}
+
+impl BarrierKind {
+    /// The variant's name, as the generated table spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            BarrierKind::PlateCorner => "PlateCorner",
+        }
+    }
+}
+
+/// One barrier `b(p, q) ≥ 0` of the model and where it sits on the robot.
+#[derive(Clone, Debug)]
+pub struct Barrier {
+    /// What it keeps apart.
+    pub kind: BarrierKind,
+    /// The module whose point it watches (0-based, base first). Its value may depend on
+    /// the coordinates of this module and of every module below it.
+    pub module: usize,
+    /// The point on that module (for a plate corner: the corner, 0-based).
+    pub point: usize,
+    /// A short stable name, 1-based like the reports: `module 1 corner 3`.
+    pub label: String,
+    /// The expression of `b`.
+    pub value: Id,
+    /// Parameter-vector indices `b` reads, ascending.
+    pub params: Vec<usize>,
+}
+
 /// Symbols and kinematic expressions of one module.
 struct ModuleExprs {
     /// `q_i = [Δx, Δy, δL]`.
@@ -24,6 +58,8 @@ struct ModuleExprs {
     translation: [Id; 3],
     /// `c_ij`: height of each corner above the bottom plate's plane.
     corner_heights: Vec<Id>,
+    /// The bending coordinates `a = Δx/d`, `b = Δy/d` and `u = a² + b² = θ²`.
+    bend: [Id; 3],
     /// `ε_ij`.
     margins: Vec<Id>,
 }
@@ -35,6 +71,8 @@ pub struct SymbolicModel {
     /// Time derivative along `q̇` (with `q̈ = 0`).
     tangent: Tangent,
     modules: Vec<ModuleExprs>,
+    /// Every barrier, in the order of the generated arrays.
+    barriers: Vec<Barrier>,
     /// `(symbol, index)` of every parameter.
     params: Vec<(Id, usize)>,
     param_names: Vec<String>,
@@ -118,14 +156,30 @@ pub fn build(structure: &Structure) -> SymbolicModel {
             corner_heights.push(arena.mul(fs, height));
             margins.push(param(Param::Margin(i, j)));
         }
+        let bend = [a, b, u];
         modules.push(ModuleExprs {
             q,
             qd,
             rotation,
             translation,
             corner_heights,
+            bend,
             margins,
         });
+    }
+    let mut barriers = Vec::new();
+    for (i, m) in modules.iter().enumerate() {
+        for (j, (&c, &eps)) in m.corner_heights.iter().zip(&m.margins).enumerate() {
+            let value = arena.sub(c, eps);
+            barriers.push(Barrier {
+                kind: BarrierKind::PlateCorner,
+                module: i,
+                point: j,
+                label: format!("module {} corner {}", i + 1, j + 1),
+                value,
+                params: params_read(&arena, &params, value),
+            });
+        }
     }
     let mut tangent = Tangent::new();
     for m in &modules {
@@ -138,10 +192,29 @@ pub fn build(structure: &Structure) -> SymbolicModel {
         diff: Differentiator::new(),
         tangent,
         modules,
+        barriers,
         params,
         param_names,
         structure: structure.clone(),
     }
+}
+
+/// The parameter-vector indices among the symbols `expr` reads, ascending.
+fn params_read(arena: &Arena, params: &[(Id, usize)], expr: Id) -> Vec<usize> {
+    let index: std::collections::HashMap<Id, usize> = params.iter().copied().collect();
+    let mut seen = vec![false; expr.index() + 1];
+    let mut stack = vec![expr];
+    let mut found = std::collections::BTreeSet::new();
+    while let Some(id) = stack.pop() {
+        if std::mem::replace(&mut seen[id.index()], true) {
+            continue;
+        }
+        if let Some(&k) = index.get(&id) {
+            found.insert(k);
+        }
+        stack.extend(arena.node(id).children());
+    }
+    found.into_iter().collect()
 }
 
 /// A generated model file and what it costs.
@@ -160,7 +233,7 @@ impl SymbolicModel {
 
     /// Number of barriers.
     pub fn nb(&self) -> usize {
-        self.modules.iter().map(|m| m.corner_heights.len()).sum()
+        self.barriers.len()
     }
 
     /// The arena holding every expression.
@@ -186,100 +259,139 @@ impl SymbolicModel {
         inputs
     }
 
-    /// Barrier values `b_ij = c_ij − ε_ij`, module-major, corner-minor.
-    pub fn barrier_exprs(&mut self) -> Vec<Id> {
-        let mut out = Vec::new();
-        for m in &self.modules {
-            for (&c, &eps) in m.corner_heights.iter().zip(&m.margins) {
-                out.push(self.arena.sub(c, eps));
-            }
-        }
-        out
+    /// The barriers, in the order of the generated arrays.
+    pub fn barrier_list(&self) -> &[Barrier] {
+        &self.barriers
     }
 
-    /// For every barrier: value, gradient with respect to its module's `q_i` (the other
-    /// modules' entries are zero) and `q̇ᵀ ∇²b q̇`.
-    pub fn barrier_term_exprs(&mut self) -> Vec<(Id, usize, [Id; 3], Id)> {
-        let barriers = self.barrier_exprs();
-        let mut out = Vec::new();
-        let mut next = 0;
-        for (i, m) in self.modules.iter().enumerate() {
-            for _ in 0..m.corner_heights.len() {
-                let b = barriers[next];
-                next += 1;
-                let gradient = self.diff.gradient(&mut self.arena, b, &m.q);
-                let rate = self.tangent.tangent(&mut self.arena, b);
-                let jdot_qd = self.tangent.tangent(&mut self.arena, rate);
-                out.push((b, i, [gradient[0], gradient[1], gradient[2]], jdot_qd));
-            }
+    /// Barrier values, in the order of [`SymbolicModel::barrier_list`].
+    pub fn barrier_exprs(&self) -> Vec<Id> {
+        self.barriers.iter().map(|b| b.value).collect()
+    }
+
+    /// For every barrier: its value, its gradient with respect to the coordinates of its
+    /// module and of every module below it (`3(i+1)` entries; a barrier depends on no
+    /// coordinate above its module) and `q̇ᵀ ∇²b q̇`.
+    pub fn barrier_term_exprs(&mut self) -> Vec<(Id, Vec<Id>, Id)> {
+        let mut out = Vec::with_capacity(self.barriers.len());
+        for barrier in &self.barriers {
+            let coordinates: Vec<Id> = self.modules[..=barrier.module]
+                .iter()
+                .flat_map(|m| m.q)
+                .collect();
+            let b = barrier.value;
+            let gradient = self.diff.gradient(&mut self.arena, b, &coordinates);
+            let rate = self.tangent.tangent(&mut self.arena, b);
+            let jdot_qd = self.tangent.tangent(&mut self.arena, rate);
+            out.push((b, gradient, jdot_qd));
         }
         out
     }
 
     /// Joint quantities of module `i` for the recursive dynamics: the motion subspace `S`
     /// (6×3, rows ω then v, tip coordinates) and `c_J = Ṡ q̇` (apparent derivative).
+    ///
+    /// The tip's body twist `V = S q̇` has the angular part in closed form: `R = exp([w]×)`
+    /// with `w = (−b, a, 0)`, so `Rᵀ Ṙ = [J_r(w) ẇ]×` with the right Jacobian
+    /// `J_r = I − f_c [w]× + g [w]×²`, `g = (θ − sin θ)/θ³ = f_c + 2 f_s'` (from
+    /// `2u f_s' = cos θ − f_s`). With `w·ẇ = aȧ + bḃ` and `w × ẇ = (aḃ − bȧ) ẑ` this is
+    /// `ω = f_s ẇ + g (aȧ + bḃ) w + f_c (bȧ − aḃ) ẑ` (`1 − g u = f_s`). The linear part
+    /// is `Rᵀ ṫ`.
+    /// `S` is `∂V/∂q̇` and `c_J` the time derivative of `V` at `q̈ = 0`.
     pub fn joint_exprs(&mut self, i: usize) -> ([[Id; 3]; 6], [Id; 6]) {
         let m = &self.modules[i];
-        let (q, qd, rotation, translation) = (m.q, m.qd, m.rotation, m.translation);
-        let mut subspace = [[self.arena.constant(0.0); 3]; 6];
-        for (k, &coordinate) in q.iter().enumerate() {
-            let mut d_rotation = [[self.arena.constant(0.0); 3]; 3];
-            for r in 0..3 {
-                for c in 0..3 {
-                    d_rotation[r][c] =
-                        self.diff
-                            .derivative(&mut self.arena, rotation[r][c], coordinate);
-                }
-            }
-            // W = Rᵀ ∂R/∂q_k is skew; ω = vee(W) = (W₂₁, W₀₂, W₁₀).
-            let column = |arena: &mut Arena, row: usize, col: usize| -> Id {
-                let left: Vec<Id> = (0..3).map(|s| rotation[s][row]).collect();
-                let right: Vec<Id> = (0..3).map(|s| d_rotation[s][col]).collect();
-                arena.dot(&left, &right)
-            };
-            subspace[0][k] = column(&mut self.arena, 2, 1);
-            subspace[1][k] = column(&mut self.arena, 0, 2);
-            subspace[2][k] = column(&mut self.arena, 1, 0);
-            let d_translation: Vec<Id> = translation
-                .iter()
-                .map(|&t| self.diff.derivative(&mut self.arena, t, coordinate))
-                .collect();
-            for r in 0..3 {
-                let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
-                subspace[3 + r][k] = self.arena.dot(&left, &d_translation);
-            }
-        }
-        // Body twist V = S q̇ = [vee(Rᵀ Ṙ); Rᵀ ṫ] by forward-mode tangents, then c_J = V̇ at q̈ = 0.
-        let mut rotation_rate = [[self.arena.constant(0.0); 3]; 3];
-        for r in 0..3 {
-            for c in 0..3 {
-                rotation_rate[r][c] = self.tangent.tangent(&mut self.arena, rotation[r][c]);
-            }
-        }
+        let (qd, rotation, translation, [a, b, u]) = (m.qd, m.rotation, m.translation, m.bend);
+        let arena = &mut self.arena;
+        let a_rate = self.tangent.tangent(arena, a);
+        let b_rate = self.tangent.tangent(arena, b);
+        let fs = arena.fs(u);
+        let fc = arena.fc(u);
+        let fs1 = arena.analytic(crate::expr::Analytic::Fs, 1, u);
+        let two = arena.constant(2.0);
+        let two_fs1 = arena.mul(two, fs1);
+        let g = arena.add(fc, two_fs1);
+        let a_a_rate = arena.mul(a, a_rate);
+        let b_b_rate = arena.mul(b, b_rate);
+        let radial_rate = arena.add(a_a_rate, b_b_rate);
+        let radial = arena.mul(g, radial_rate);
+        let b_a_rate = arena.mul(b, a_rate);
+        let a_b_rate = arena.mul(a, b_rate);
+        let twist_rate = arena.sub(b_a_rate, a_b_rate);
+        // ω_x = −f_s ḃ − g (aȧ + bḃ) b, ω_y = f_s ȧ + g (aȧ + bḃ) a.
+        let x_along = arena.mul(fs, b_rate);
+        let x_radial = arena.mul(radial, b);
+        let x_sum = arena.add(x_along, x_radial);
+        let y_along = arena.mul(fs, a_rate);
+        let y_radial = arena.mul(radial, a);
+        let angular = [
+            arena.neg(x_sum),
+            arena.add(y_along, y_radial),
+            arena.mul(fc, twist_rate),
+        ];
+        let zero = self.arena.constant(0.0);
+        let mut twist = [angular[0], angular[1], angular[2], zero, zero, zero];
         let translation_rate: Vec<Id> = translation
             .iter()
             .map(|&t| self.tangent.tangent(&mut self.arena, t))
             .collect();
-        let body = |arena: &mut Arena, row: usize, col: usize| -> Id {
-            let left: Vec<Id> = (0..3).map(|s| rotation[s][row]).collect();
-            let right: Vec<Id> = (0..3).map(|s| rotation_rate[s][col]).collect();
-            arena.dot(&left, &right)
-        };
-        let mut twist = [
-            body(&mut self.arena, 2, 1),
-            body(&mut self.arena, 0, 2),
-            body(&mut self.arena, 1, 0),
-            self.arena.constant(0.0),
-            self.arena.constant(0.0),
-            self.arena.constant(0.0),
-        ];
         for r in 0..3 {
             let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
             twist[3 + r] = self.arena.dot(&left, &translation_rate);
         }
-        let _ = qd;
+        let mut subspace = [[self.arena.constant(0.0); 3]; 6];
+        for (r, row) in subspace.iter_mut().enumerate() {
+            for (k, entry) in row.iter_mut().enumerate() {
+                *entry = self.diff.derivative(&mut self.arena, twist[r], qd[k]);
+            }
+        }
         let bias = twist.map(|v| self.tangent.tangent(&mut self.arena, v));
         (subspace, bias)
+    }
+
+    /// The places and values `barrier_terms` writes: each barrier, its Jacobian row (zero
+    /// past the barrier's module) and `J̇q̇`.
+    fn barrier_term_outputs(&mut self) -> Vec<(TokenStream, Id)> {
+        let nq = self.nq();
+        let zero = self.arena.constant(0.0);
+        let mut outputs = Vec::new();
+        for (k, (b, gradient, jdot)) in self.barrier_term_exprs().into_iter().enumerate() {
+            let k_lit = Literal::usize_unsuffixed(k);
+            outputs.push((quote!(barriers[#k_lit]), b));
+            for col in 0..nq {
+                let c_lit = Literal::usize_unsuffixed(col);
+                let value = gradient.get(col).copied().unwrap_or(zero);
+                outputs.push((quote!(jacobian[#k_lit][#c_lit]), value));
+            }
+            outputs.push((quote!(jdot_qd[#k_lit]), jdot));
+        }
+        outputs
+    }
+
+    /// The places and values `joint_terms` writes, module by module.
+    fn joint_outputs(&mut self) -> Vec<(TokenStream, Id)> {
+        let mut outputs = Vec::new();
+        for i in 0..self.modules.len() {
+            let (subspace, bias) = self.joint_exprs(i);
+            let m = &self.modules[i];
+            let i_lit = Literal::usize_unsuffixed(i);
+            for r in 0..3 {
+                let r_lit = Literal::usize_unsuffixed(r);
+                for c in 0..3 {
+                    let c_lit = Literal::usize_unsuffixed(c);
+                    outputs.push((quote!(rotation[#i_lit][#r_lit][#c_lit]), m.rotation[r][c]));
+                }
+                outputs.push((quote!(translation[#i_lit][#r_lit]), m.translation[r]));
+            }
+            for (r, row) in subspace.iter().enumerate() {
+                let r_lit = Literal::usize_unsuffixed(r);
+                for (c, &value) in row.iter().enumerate() {
+                    let c_lit = Literal::usize_unsuffixed(c);
+                    outputs.push((quote!(motion_subspace[#i_lit][#r_lit][#c_lit]), value));
+                }
+                outputs.push((quote!(bias_acceleration[#i_lit][#r_lit]), bias[r]));
+            }
+        }
+        outputs
     }
 
     /// Emits the whole model as one Rust source file (items only, to be `include!`d).
@@ -341,8 +453,9 @@ impl SymbolicModel {
         let spec = FunctionSpec {
             name: format_ident!("barriers"),
             doc: vec![
-                " Plate-corner barriers `b_ij = c_ij − ε_ij` \\[m\\], module-major, corner-minor."
+                " Every barrier value \\[m\\], in the order of [`BARRIERS`] (a plate corner's is"
                     .into(),
+                " `b_ij = c_ij − ε_ij`).".into(),
             ],
             args: quote!(p: &[f64; NP], q: &[f64; NQ], barriers: &mut [f64; NB]),
             inputs: self.bindings(false),
@@ -352,23 +465,7 @@ impl SymbolicModel {
         push("barriers", emit_function(&self.arena, &spec));
 
         // Barriers with Jacobian rows and J̇q̇.
-        let terms = self.barrier_term_exprs();
-        let zero = self.arena.constant(0.0);
-        let mut outputs = Vec::new();
-        for (k, (b, module, gradient, jdot)) in terms.iter().enumerate() {
-            let k_lit = Literal::usize_unsuffixed(k);
-            outputs.push((quote!(barriers[#k_lit]), *b));
-            for col in 0..nq_value {
-                let c_lit = Literal::usize_unsuffixed(col);
-                let value = if col / 3 == *module {
-                    gradient[col % 3]
-                } else {
-                    zero
-                };
-                outputs.push((quote!(jacobian[#k_lit][#c_lit]), value));
-            }
-            outputs.push((quote!(jdot_qd[#k_lit]), *jdot));
-        }
+        let barrier_outputs = self.barrier_term_outputs();
         let spec = FunctionSpec {
             name: format_ident!("barrier_terms"),
             doc: vec![
@@ -384,34 +481,13 @@ impl SymbolicModel {
                 jdot_qd: &mut [f64; NB]
             ),
             inputs: self.bindings(true),
-            outputs,
+            outputs: barrier_outputs.clone(),
             epilogue: TokenStream::new(),
         };
         push("barrier_terms", emit_function(&self.arena, &spec));
 
         // Joint quantities for the recursive dynamics.
-        let mut outputs = Vec::new();
-        for i in 0..n_modules {
-            let (subspace, bias) = self.joint_exprs(i);
-            let m = &self.modules[i];
-            let i_lit = Literal::usize_unsuffixed(i);
-            for r in 0..3 {
-                let r_lit = Literal::usize_unsuffixed(r);
-                for c in 0..3 {
-                    let c_lit = Literal::usize_unsuffixed(c);
-                    outputs.push((quote!(rotation[#i_lit][#r_lit][#c_lit]), m.rotation[r][c]));
-                }
-                outputs.push((quote!(translation[#i_lit][#r_lit]), m.translation[r]));
-            }
-            for (r, row) in subspace.iter().enumerate() {
-                let r_lit = Literal::usize_unsuffixed(r);
-                for (c, &value) in row.iter().enumerate() {
-                    let c_lit = Literal::usize_unsuffixed(c);
-                    outputs.push((quote!(motion_subspace[#i_lit][#r_lit][#c_lit]), value));
-                }
-                outputs.push((quote!(bias_acceleration[#i_lit][#r_lit]), bias[r]));
-            }
-        }
+        let joint_outputs = self.joint_outputs();
         let spec = FunctionSpec {
             name: format_ident!("joint_terms"),
             doc: vec![
@@ -429,10 +505,37 @@ impl SymbolicModel {
                 bias_acceleration: &mut [[f64; 6]; N_MODULES]
             ),
             inputs: self.bindings(true),
-            outputs,
+            outputs: joint_outputs.clone(),
             epilogue: TokenStream::new(),
         };
         push("joint_terms", emit_function(&self.arena, &spec));
+
+        // Both at once: one program, the kinematics and series shared.
+        let spec = FunctionSpec {
+            name: format_ident!("model_terms"),
+            doc: vec![
+                " Everything the control tick needs at one state in one pass: the outputs of"
+                    .into(),
+                " [`joint_terms`] and of [`barrier_terms`], same layouts, every shared term".into(),
+                " (segment kinematics, `f_s`, `f_c` and their derivatives) computed once.".into(),
+            ],
+            args: quote!(
+                p: &[f64; NP],
+                q: &[f64; NQ],
+                qd: &[f64; NQ],
+                rotation: &mut [[[f64; 3]; 3]; N_MODULES],
+                translation: &mut [[f64; 3]; N_MODULES],
+                motion_subspace: &mut [[[f64; 3]; 6]; N_MODULES],
+                bias_acceleration: &mut [[f64; 6]; N_MODULES],
+                barriers: &mut [f64; NB],
+                jacobian: &mut [[f64; NQ]; NB],
+                jdot_qd: &mut [f64; NB]
+            ),
+            inputs: self.bindings(true),
+            outputs: joint_outputs.into_iter().chain(barrier_outputs).collect(),
+            epilogue: TokenStream::new(),
+        };
+        push("model_terms", emit_function(&self.arena, &spec));
 
         let plate_poses = quote! {
             /// World poses `W_i = T_1 ⋯ T_i` of every module's top plate (4×4, rows).
@@ -466,12 +569,29 @@ impl SymbolicModel {
             .tendons
             .iter()
             .map(|&c| Literal::usize_unsuffixed(c));
+        let barrier_table = self.barriers.iter().map(|b| {
+            let kind = format_ident!("{}", b.kind.name());
+            let module = Literal::usize_unsuffixed(b.module);
+            let point = Literal::usize_unsuffixed(b.point);
+            let label = &b.label;
+            let params = b.params.iter().map(|&k| Literal::usize_unsuffixed(k));
+            quote! {
+                BarrierInfo {
+                    kind: BarrierKind::#kind,
+                    module: #module,
+                    point: #point,
+                    label: #label,
+                    params: &[#(#params),*],
+                }
+            }
+        });
         let tokens = quote! {
+            use crate::{BarrierInfo, BarrierKind};
             /// Number of modules.
             pub const N_MODULES: usize = #n;
             /// Number of generalized coordinates (3 per module).
             pub const NQ: usize = #nq;
-            /// Number of plate-corner barriers.
+            /// Number of barriers.
             pub const NB: usize = #nb;
             /// Length of the parameter vector.
             pub const NP: usize = #np;
@@ -481,6 +601,8 @@ impl SymbolicModel {
             pub const CORNERS: [usize; N_MODULES] = [#(#corners),*];
             /// Tendons per module.
             pub const TENDONS: [usize; N_MODULES] = [#(#tendons),*];
+            /// Every barrier, in the order of the barrier arrays (module and point 0-based).
+            pub const BARRIERS: [BarrierInfo; NB] = [#(#barrier_table),*];
             #(#analytic_functions)*
             #(#functions)*
             #plate_poses

@@ -1,9 +1,9 @@
 //! Common-subexpression elimination: turns output nodes into a straight-line program.
 //! Hash-consing already shares equal subtrees; this orders every needed node once.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
-use crate::expr::{Analytic, Arena, Id, Node};
+use crate::expr::{Arena, Id, Node};
 
 /// A straight-line program computing some outputs: each step is evaluated once.
 #[derive(Clone, Debug)]
@@ -14,12 +14,17 @@ pub struct Program {
     pub outputs: Vec<Id>,
     /// For each argument of an analytic node, the highest derivative order used.
     pub analytic_orders: BTreeMap<Id, u8>,
+    /// How often each step is read: as an operand of another step or as an output.
+    pub uses: BTreeMap<Id, usize>,
+    /// Negations read only as operands of sums: they are emitted as subtractions inside
+    /// those sums, never computed on their own.
+    pub absorbed: BTreeSet<Id>,
 }
 
 /// Operation counts of a program, printed in generated file headers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct OpCount {
-    /// Additions, subtractions and negations.
+    /// Additions, subtractions and the negations computed on their own.
     pub add: usize,
     /// Multiplications (including those of small integer powers).
     pub mul: usize,
@@ -78,20 +83,48 @@ pub fn schedule(arena: &Arena, outputs: &[Id]) -> Program {
             _ => steps.push(id),
         }
     }
+
+    let is_step = |id: Id| !matches!(arena.node(id), Node::Const(_) | Node::Symbol(_));
+    let mut uses = BTreeMap::new();
+    let mut outside_sums = BTreeSet::new();
+    for &id in &steps {
+        let in_sum = matches!(arena.node(id), Node::Add(..));
+        for child in arena.node(id).children().filter(|&c| is_step(c)) {
+            *uses.entry(child).or_insert(0) += 1;
+            if !in_sum {
+                outside_sums.insert(child);
+            }
+        }
+    }
+    for &id in outputs.iter().filter(|&&id| is_step(id)) {
+        *uses.entry(id).or_insert(0) += 1;
+        outside_sums.insert(id);
+    }
+    let absorbed = steps
+        .iter()
+        .copied()
+        .filter(|&id| matches!(arena.node(id), Node::Neg(_)) && !outside_sums.contains(&id))
+        .collect();
     Program {
         steps,
         outputs: outputs.to_vec(),
         analytic_orders,
+        uses,
+        absorbed,
     }
 }
 
-/// Counts the arithmetic a program performs.
+/// Counts the arithmetic a program performs as emitted: a subtraction is one addition,
+/// a negation absorbed into a sum costs nothing.
 pub fn op_count(arena: &Arena, program: &Program) -> OpCount {
     let mut count = OpCount {
         analytic: program.analytic_orders.len(),
         ..OpCount::default()
     };
     for &id in &program.steps {
+        if program.absorbed.contains(&id) {
+            continue;
+        }
         match arena.node(id) {
             Node::Add(..) | Node::Neg(_) => count.add += 1,
             Node::Mul(..) => count.mul += 1,
@@ -102,94 +135,4 @@ pub fn op_count(arena: &Arena, program: &Program) -> OpCount {
         }
     }
     count
-}
-
-/// How the evaluators below compute the analytic functions.
-pub type AnalyticFn = fn(Analytic, u8, f64) -> f64;
-
-fn apply(node: Node, value: impl Fn(Id) -> f64, symbols: &[f64], analytic: AnalyticFn) -> f64 {
-    match node {
-        Node::Const(bits) => f64::from_bits(bits),
-        Node::Symbol(s) => symbols[s as usize],
-        Node::Add(a, b) => value(a) + value(b),
-        Node::Mul(a, b) => value(a) * value(b),
-        Node::Neg(a) => -value(a),
-        Node::Div(a, b) => value(a) / value(b),
-        Node::Powi(a, n) => powi_as_emitted(value(a), n),
-        Node::Sqrt(a) => value(a).sqrt(),
-        Node::Sin(a) => value(a).sin(),
-        Node::Cos(a) => value(a).cos(),
-        Node::Analytic { func, order, arg } => analytic(func, order, value(arg)),
-    }
-}
-
-/// `x^n` computed exactly as the emitted code computes it.
-pub fn powi_as_emitted(x: f64, n: i32) -> f64 {
-    match n {
-        2 => x * x,
-        3 => x * x * x,
-        4 => {
-            let x2 = x * x;
-            x2 * x2
-        }
-        -1 => 1.0 / x,
-        _ => x.powi(n),
-    }
-}
-
-/// Evaluates one node by walking its tree without any sharing (a reference for CSE tests;
-/// exponential on shared graphs, so only for small expressions).
-pub fn eval_tree(arena: &Arena, id: Id, symbols: &[f64], analytic: AnalyticFn) -> f64 {
-    apply(
-        arena.node(id),
-        |child| eval_tree(arena, child, symbols, analytic),
-        symbols,
-        analytic,
-    )
-}
-
-/// Evaluates a program step by step, each node once, and returns its outputs.
-pub fn eval_program(
-    arena: &Arena,
-    program: &Program,
-    symbols: &[f64],
-    analytic: AnalyticFn,
-) -> Vec<f64> {
-    let mut values = vec![f64::NAN; arena.len()];
-    let leaf = |id: Id, values: &[f64]| match arena.node(id) {
-        Node::Const(bits) => f64::from_bits(bits),
-        Node::Symbol(s) => symbols[s as usize],
-        _ => values[id.index()],
-    };
-    for &id in &program.steps {
-        let v = apply(arena.node(id), |c| leaf(c, &values), symbols, analytic);
-        values[id.index()] = v;
-    }
-    program.outputs.iter().map(|&o| leaf(o, &values)).collect()
-}
-
-/// A plain f64 evaluation of the analytic functions by their power series, for tests of
-/// the engine (the emitted code has its own, checked evaluation).
-pub fn analytic_by_series(func: Analytic, order: u8, u: f64) -> f64 {
-    // k-th derivative of Σ_n a_n u^n with a_n = (−1)^n / (2n+1)! (f_s) or (2n+2)! (f_c).
-    let shift = match func {
-        Analytic::Fs => 1,
-        Analytic::Fc => 2,
-    };
-    let k = u32::from(order);
-    let mut total = 0.0;
-    let mut power = 1.0;
-    for n in 0..80u32 {
-        let m = n + k; // index of the coefficient differentiated k times
-        let mut coefficient = if m % 2 == 0 { 1.0 } else { -1.0 };
-        for i in 1..=(2 * m + shift) {
-            coefficient /= f64::from(i);
-        }
-        for i in (n + 1)..=m {
-            coefficient *= f64::from(i);
-        }
-        total += coefficient * power;
-        power *= u;
-    }
-    total
 }

@@ -2,17 +2,37 @@
 //!
 //! `build.rs` generates one module per robot structure found in the workspace's `robots/`
 //! directory (and in `SOFTCBF_ROBOTS`); each module has array-typed functions
-//! (`segment_transforms`, `plate_poses`, `barriers`, `barrier_terms`, `joint_terms`) and a
+//! (`segment_transforms`, `plate_poses`, `barriers`, `barrier_terms`, `joint_terms`,
+//! `model_terms`), the table `BARRIERS` of what each barrier is ([`BarrierInfo`]) and a
 //! `Model` implementing [`GeneratedModel`], the slice-based interface the runtime uses,
 //! and `SOURCE`, the generated text it was compiled from (`golden/paper_sim.rs` is the
 //! checked-in copy of the paper robot's, compared by the `golden` test of softcbf-tests).
 //! [`find`] picks the model of a structure. Numbers are never compiled in: every function
 //! takes the parameter vector `p` laid out by `softcbf_codegen::layout`.
 
-/// `pcc_fs_fc_6(u)`: `f_s`, `f_c` and their derivatives up to order 6 (MODEL.md §2).
-#[allow(clippy::all, clippy::pedantic, unused)]
-pub mod analytic {
-    include!(concat!(env!("OUT_DIR"), "/analytic.rs"));
+/// What a barrier keeps apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BarrierKind {
+    /// A corner of a module's top plate above the plane of its bottom plate
+    /// (`b_ij = c_ij − ε_ij`).
+    PlateCorner,
+}
+
+/// One row of a model's barrier table: which barrier sits at an index of the barrier
+/// arrays (`barriers`, the Jacobian rows, `J̇q̇`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BarrierInfo {
+    /// What it keeps apart.
+    pub kind: BarrierKind,
+    /// The module it belongs to, **0-based** (base first). Its Jacobian row is zero past
+    /// this module's coordinates `3·module..3·module + 3`.
+    pub module: usize,
+    /// The point on that module, **0-based** (for a plate corner: the corner).
+    pub point: usize,
+    /// A short stable name for reports and logs, **1-based**: `module 1 corner 3`.
+    pub label: &'static str,
+    /// Parameter-vector indices the barrier reads, ascending.
+    pub params: &'static [usize],
 }
 
 /// A generated model behind slices, so the runtime can choose it at run time.
@@ -32,6 +52,8 @@ pub trait GeneratedModel: Sync {
     fn routing(&self) -> &'static str;
     /// Parameter names in parameter-vector order.
     fn param_names(&self) -> &'static [&'static str];
+    /// Every barrier, in the order of the barrier arrays.
+    fn barrier_table(&self) -> &'static [BarrierInfo];
     /// Number of modules.
     fn n_modules(&self) -> usize {
         self.corners().len()
@@ -40,9 +62,9 @@ pub trait GeneratedModel: Sync {
     fn nq(&self) -> usize {
         3 * self.n_modules()
     }
-    /// Number of barriers.
+    /// Number of barriers (rows of [`GeneratedModel::barrier_table`]).
     fn nb(&self) -> usize {
-        self.corners().iter().sum()
+        self.barrier_table().len()
     }
     /// Segment transforms `T_i`.
     fn segment_transforms(&self, p: &[f64], q: &[f64], transforms: &mut [[[f64; 4]; 4]]);
@@ -60,9 +82,9 @@ pub trait GeneratedModel: Sync {
         jacobian: &mut [f64],
         jdot_qd: &mut [f64],
     );
-    /// Everything the control tick needs from the model at one state, with the segment
-    /// kinematics and the small-θ series evaluated once: the joint terms of
-    /// [`GeneratedModel::joint_terms`] and the barrier terms of
+    /// Everything the control tick needs from the model at one state, in one generated
+    /// pass (the segment kinematics and the small-θ series evaluated once): the joint terms
+    /// of [`GeneratedModel::joint_terms`] and the barrier terms of
     /// [`GeneratedModel::barrier_terms`], same layouts.
     #[allow(clippy::too_many_arguments)]
     fn model_terms(
@@ -77,18 +99,7 @@ pub trait GeneratedModel: Sync {
         barriers: &mut [f64],
         jacobian: &mut [f64],
         jdot_qd: &mut [f64],
-    ) {
-        self.joint_terms(
-            p,
-            q,
-            qd,
-            rotation,
-            translation,
-            motion_subspace,
-            bias_acceleration,
-        );
-        self.barrier_terms(p, q, qd, barriers, jacobian, jdot_qd);
-    }
+    );
     /// Per-segment `R_i`, `t_i`, motion subspace `S_i` and `c_J,i = Ṡ_i q̇_i`.
     #[allow(clippy::too_many_arguments)]
     fn joint_terms(
@@ -136,6 +147,9 @@ macro_rules! impl_generated_model {
             fn param_names(&self) -> &'static [&'static str] {
                 &PARAM_NAMES
             }
+            fn barrier_table(&self) -> &'static [$crate::BarrierInfo] {
+                &BARRIERS
+            }
             fn segment_transforms(&self, p: &[f64], q: &[f64], transforms: &mut [[[f64; 4]; 4]]) {
                 segment_transforms(
                     sized(p, "p"),
@@ -164,6 +178,34 @@ macro_rules! impl_generated_model {
                     sized(p, "p"),
                     sized(q, "q"),
                     sized(qd, "qd"),
+                    sized_mut(b, "barriers"),
+                    sized_mut(rows, "jacobian"),
+                    sized_mut(jdot_qd, "jdot_qd"),
+                )
+            }
+            fn model_terms(
+                &self,
+                p: &[f64],
+                q: &[f64],
+                qd: &[f64],
+                rotation: &mut [[[f64; 3]; 3]],
+                translation: &mut [[f64; 3]],
+                motion_subspace: &mut [[[f64; 3]; 6]],
+                bias_acceleration: &mut [[f64; 6]],
+                b: &mut [f64],
+                jacobian: &mut [f64],
+                jdot_qd: &mut [f64],
+            ) {
+                let (rows, rest) = jacobian.as_chunks_mut::<NQ>();
+                assert!(rest.is_empty(), "jacobian: length not a multiple of {NQ}");
+                model_terms(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized(qd, "qd"),
+                    sized_mut(rotation, "rotation"),
+                    sized_mut(translation, "translation"),
+                    sized_mut(motion_subspace, "motion_subspace"),
+                    sized_mut(bias_acceleration, "bias_acceleration"),
                     sized_mut(b, "barriers"),
                     sized_mut(rows, "jacobian"),
                     sized_mut(jdot_qd, "jdot_qd"),

@@ -13,6 +13,32 @@ fn rows(flat: &[f64], columns: usize) -> Vec<Vec<f64>> {
     flat.chunks(columns).map(<[f64]>::to_vec).collect()
 }
 
+/// What each barrier is, in the order of the barrier arrays: its kind, module and point
+/// (1-based, as in `summary.json`), label and the names of the parameters it reads.
+fn barrier_table(model: &Model) -> Value {
+    let names = model.generated.param_names();
+    let rows: Vec<Value> = model
+        .generated
+        .barrier_table()
+        .iter()
+        .map(|b| {
+            let params: Vec<&str> = b
+                .params
+                .iter()
+                .filter_map(|&k| names.get(k).copied())
+                .collect();
+            json!({
+                "kind": format!("{:?}", b.kind),
+                "module": b.module + 1,
+                "point": b.point + 1,
+                "label": b.label,
+                "params": params,
+            })
+        })
+        .collect();
+    Value::Array(rows)
+}
+
 /// The model at `(q, q̇)`; `q` and `qd` must have `model.nq()` entries.
 pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Value {
     let (n, nq, nb) = (model.n_modules(), model.nq(), model.nb());
@@ -44,6 +70,7 @@ pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Value {
         "q": q,
         "qd": qd,
         "plate_poses": poses,
+        "barrier_table": barrier_table(model),
         "barriers": barriers,
         "barrier_jacobian": rows(&jacobian, nq),
         "barrier_jdot_qd": jdot_qd,

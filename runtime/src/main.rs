@@ -13,7 +13,7 @@ use softcbf::inspect::model_report;
 use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::ScenarioFile;
-use softcbf::sim::simulate;
+use softcbf::sim::{barriers_per_module, simulate};
 use softcbf_codegen::limits;
 
 #[derive(Parser)]
@@ -168,8 +168,9 @@ fn run_simulation(
     } else {
         None
     };
-    let written = write_outputs(out, &main, comparison.as_ref(), model.generated.corners())
-        .map_err(|e| e.to_string())?;
+    let per_module = barriers_per_module(model.generated.barrier_table(), model.n_modules());
+    let written =
+        write_outputs(out, &main, comparison.as_ref(), &per_module).map_err(|e| e.to_string())?;
     console.say(&one_line(&main.summary));
     if let Some(pd) = &comparison {
         console.say(&one_line(&pd.summary));

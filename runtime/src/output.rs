@@ -35,7 +35,9 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {
 
 /// Writes `trajectory.csv` (the main run), `trajectory_pd.csv` (the comparison, if any),
 /// `summary.json` and the figures `figure.png` / `figure.svg` into `out_dir` (created if
-/// needed). Returns the paths written.
+/// needed); `barriers_per_module` splits the barriers for the figures
+/// ([`crate::sim::barriers_per_module`] of the model's barrier table). Returns the paths
+/// written.
 pub fn write_outputs(
     out_dir: &Path,
     main: &Run,

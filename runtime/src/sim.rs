@@ -9,6 +9,7 @@
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
+use softcbf_generated::BarrierInfo;
 
 use crate::control::{self, Controller, ControllerError, TickStatus};
 use crate::integrator::IntegratorError;
@@ -40,26 +41,76 @@ pub enum SimulationError {
 pub struct BarrierMinimum {
     /// `min_k b_k(t)` over the ticks \[m\].
     pub value: f64,
-    /// Index of that barrier (module-major, corner-minor, 0-based).
+    /// Index of that barrier in the model's barrier table (0-based).
     pub barrier: usize,
-    /// Its module (1-based, base first).
+    /// Its module (1-based, base first; 0 before any barrier was seen).
     pub module: usize,
-    /// Its corner within the module's plate (1-based).
+    /// Its point on the module, for a plate corner the corner (1-based; 0 before any).
     pub corner: usize,
+    /// Its name in the barrier table, e.g. `module 1 corner 3` (empty before any).
+    pub label: &'static str,
     /// When \[s\].
     pub t: f64,
+}
+
+impl BarrierMinimum {
+    /// Nothing seen yet: an infinite value owned by no barrier.
+    pub fn none() -> BarrierMinimum {
+        BarrierMinimum {
+            value: f64::INFINITY,
+            barrier: 0,
+            module: 0,
+            corner: 0,
+            label: "",
+            t: 0.0,
+        }
+    }
+
+    /// Barrier `k` of `table` at `value`, time `t`.
+    pub fn of(table: &[BarrierInfo], k: usize, value: f64, t: f64) -> BarrierMinimum {
+        let (module, corner, label) = owner(table, k);
+        BarrierMinimum {
+            value,
+            barrier: k,
+            module,
+            corner,
+            label,
+            t,
+        }
+    }
 }
 
 /// How often one barrier's row was relaxed.
 #[derive(Clone, Debug, Serialize)]
 pub struct RelaxedBarrier {
-    /// Barrier index (module-major, corner-minor, 0-based).
+    /// Index in the model's barrier table (0-based).
     pub barrier: usize,
-    /// Module (1-based) and corner (1-based).
+    /// Module (1-based) and point on it, for a plate corner the corner (1-based).
     pub module: usize,
     pub corner: usize,
+    /// Its name in the barrier table.
+    pub label: &'static str,
     /// Ticks in which its row was relaxed.
     pub ticks: usize,
+}
+
+/// Module and point (both 1-based) and label of barrier `k` of `table`.
+fn owner(table: &[BarrierInfo], k: usize) -> (usize, usize, &'static str) {
+    table
+        .get(k)
+        .map_or((0, 0, ""), |b| (b.module + 1, b.point + 1, b.label))
+}
+
+/// How many barriers each of `modules` modules owns, in module order (the split the
+/// figures draw barriers by).
+pub fn barriers_per_module(table: &[BarrierInfo], modules: usize) -> Vec<usize> {
+    let mut counts = vec![0; modules];
+    for b in table {
+        if let Some(count) = counts.get_mut(b.module) {
+            *count += 1;
+        }
+    }
+    counts
 }
 
 /// Counts of the controller's outcomes over a run.
@@ -129,18 +180,6 @@ pub struct Run {
     pub summary: RunSummary,
 }
 
-/// (module, corner), both 1-based, of barrier `k` given the corners per module.
-pub fn barrier_owner(corners: &[usize], k: usize) -> (usize, usize) {
-    let mut first = 0;
-    for (i, &c) in corners.iter().enumerate() {
-        if k < first + c {
-            return (i + 1, k - first + 1);
-        }
-        first += c;
-    }
-    (0, 0)
-}
-
 /// Simulates `scenario` on `model` with the safety filter on (`filter`) or off, calling
 /// `progress` with the fraction done (about a hundred times per run).
 pub fn simulate(
@@ -172,17 +211,11 @@ pub fn simulate(
     }
     let ticks = (scenario.duration / scenario.control_period).round() as usize;
     let mut record = Record::with_capacity(nq, nb, &[], ticks + 1)?;
-    let corners = model.generated.corners();
+    let table = model.generated.barrier_table();
 
     let mut counts = TickCounts::default();
     let mut relaxed_ticks = vec![0usize; nb];
-    let mut minimum = BarrierMinimum {
-        value: f64::INFINITY,
-        barrier: 0,
-        module: 0,
-        corner: 0,
-        t: 0.0,
-    };
+    let mut minimum = BarrierMinimum::none();
     let mut max_abs_tau = 0.0_f64;
     let (mut control_time, mut integration_time) = (Duration::ZERO, Duration::ZERO);
     let mut stopped = None;
@@ -225,14 +258,7 @@ pub fn simulate(
         }
         for (j, &b) in controller.barriers().iter().enumerate() {
             if b < minimum.value {
-                let (module, corner) = barrier_owner(corners, j);
-                minimum = BarrierMinimum {
-                    value: b,
-                    barrier: j,
-                    module,
-                    corner,
-                    t,
-                };
+                minimum = BarrierMinimum::of(table, j, b, t);
             }
         }
         let applied = if k < ticks { controller.tau() } else { &[][..] };
@@ -281,11 +307,12 @@ pub fn simulate(
         .enumerate()
         .filter(|(_, n)| **n > 0)
         .map(|(barrier, &ticks)| {
-            let (module, corner) = barrier_owner(corners, barrier);
+            let (module, corner, label) = owner(table, barrier);
             RelaxedBarrier {
                 barrier,
                 module,
                 corner,
+                label,
                 ticks,
             }
         })

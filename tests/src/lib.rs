@@ -1,7 +1,15 @@
-//! Shared helpers of the integration tests: independent reference evaluations.
-//! Nothing here uses the generated code; tests compare the two.
+//! Shared helpers of the integration tests: independent reference evaluations (nothing
+//! here uses the generated models; tests compare the two) and the emitted series under test.
 
 pub mod alloc;
+pub mod evaluate;
 pub mod highprec;
 pub mod reference;
 pub mod robots;
+
+/// `pcc_fs_fc_6(u)`: `f_s`, `f_c` and their derivatives up to order 6, emitted by
+/// `softcbf_codegen::analytic::emit(6)` in this crate's build script.
+#[allow(clippy::all, clippy::pedantic, unused)]
+pub mod analytic {
+    include!(concat!(env!("OUT_DIR"), "/analytic.rs"));
+}

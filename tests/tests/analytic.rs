@@ -2,7 +2,7 @@
 //! limits at 0, tiny and subnormal u, a dense grid, both sides of every switch, derivatives.
 
 use softcbf_codegen::analytic::SWITCH_POINTS;
-use softcbf_generated::analytic::pcc_fs_fc_6;
+use softcbf_tests::analytic::pcc_fs_fc_6;
 use softcbf_tests::highprec::{DD, fs_fc_reference, limits_at_zero};
 
 const ORDER: usize = 6;

@@ -109,3 +109,90 @@ fn compiled_model_is_the_golden_source() {
         );
     }
 }
+
+/// The fused `model_terms` gives bit for bit what `joint_terms` and `barrier_terms` give
+/// (one program of the same expressions), at states on both sides of the series switch.
+#[test]
+fn model_terms_is_joint_terms_and_barrier_terms() {
+    use softcbf_generated::GeneratedModel;
+    let model = &softcbf_generated::paper_sim::Model;
+    let robot =
+        Robot::load(&workspace_root().join(LABEL)).unwrap_or_else(|error| panic!("{error}"));
+    let p = softcbf_codegen::layout::pack_params(&robot);
+    let (n, nq, nb) = (model.n_modules(), model.nq(), model.nb());
+    let states: [[f64; 6]; 3] = [
+        [0.0; 6],
+        [1e-4, -2e-4, 1e-3, 3e-5, 1e-5, -2e-3],
+        [0.012, -0.007, 0.004, -0.02, 0.015, -0.01],
+    ];
+    for q in &states {
+        let qd = [0.3, -0.2, 0.05, 0.1, 0.4, -0.03];
+        let mut separate = (
+            vec![[[0.0; 3]; 3]; n],
+            vec![[0.0; 3]; n],
+            vec![[[0.0; 3]; 6]; n],
+            vec![[0.0; 6]; n],
+            vec![0.0; nb],
+            vec![0.0; nb * nq],
+            vec![0.0; nb],
+        );
+        let mut fused = separate.clone();
+        let s = &mut separate;
+        model.joint_terms(&p, q, &qd, &mut s.0, &mut s.1, &mut s.2, &mut s.3);
+        model.barrier_terms(&p, q, &qd, &mut s.4, &mut s.5, &mut s.6);
+        let f = &mut fused;
+        model.model_terms(
+            &p, q, &qd, &mut f.0, &mut f.1, &mut f.2, &mut f.3, &mut f.4, &mut f.5, &mut f.6,
+        );
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let flat3 = |v: &[[[f64; 3]; 3]]| v.iter().flatten().flatten().copied().collect::<Vec<_>>();
+        let flat6 = |v: &[[[f64; 3]; 6]]| v.iter().flatten().flatten().copied().collect::<Vec<_>>();
+        assert_eq!(bits(&flat3(&s.0)), bits(&flat3(&f.0)), "rotation at {q:?}");
+        assert_eq!(
+            bits(s.1.as_flattened()),
+            bits(f.1.as_flattened()),
+            "translation"
+        );
+        assert_eq!(bits(&flat6(&s.2)), bits(&flat6(&f.2)), "motion subspace");
+        assert_eq!(
+            bits(s.3.as_flattened()),
+            bits(f.3.as_flattened()),
+            "bias acceleration"
+        );
+        assert_eq!(bits(&s.4), bits(&f.4), "barriers");
+        assert_eq!(bits(&s.5), bits(&f.5), "jacobian");
+        assert_eq!(bits(&s.6), bits(&f.6), "jdot_qd");
+    }
+}
+
+/// The barrier table names every barrier of the paper robot, module-major and
+/// corner-minor, with the parameters its expression reads.
+#[test]
+fn barrier_table_describes_the_plate_corners() {
+    use softcbf_generated::{BarrierKind, GeneratedModel};
+    let model = &softcbf_generated::paper_sim::Model;
+    let table = model.barrier_table();
+    assert_eq!(table.len(), model.corners().iter().sum::<usize>());
+    assert_eq!(model.nb(), table.len());
+    let names = model.param_names();
+    let mut k = 0;
+    for (i, &corners) in model.corners().iter().enumerate() {
+        for j in 0..corners {
+            let b = &table[k];
+            assert_eq!(b.kind, BarrierKind::PlateCorner);
+            assert_eq!((b.module, b.point), (i, j));
+            assert_eq!(b.label, format!("module {} corner {}", i + 1, j + 1));
+            let read: Vec<&str> = b.params.iter().map(|&p| names[p]).collect();
+            let expected = [
+                format!("rest_length_{i}"),
+                format!("tendon_radius_{i}"),
+                format!("corner_radius_{i}"),
+                format!("corner_cos_{i}_{j}"),
+                format!("corner_sin_{i}_{j}"),
+                format!("margin_{i}_{j}"),
+            ];
+            assert_eq!(read, expected, "barrier {k}");
+            k += 1;
+        }
+    }
+}

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::model::Model;
 use crate::plot::draw_figures;
 use crate::record::{Columns, CsvWriter, Record, Row};
+use crate::sim::barriers_per_module;
 
 /// Where the loop writes its rows; flushed at every stop.
 pub trait RunLog {
@@ -107,7 +108,7 @@ pub fn finish(
             "figure",
             &[(title, &record)],
             set_point,
-            model.generated.corners(),
+            &barriers_per_module(model.generated.barrier_table(), model.n_modules()),
         )
         .map_err(|e| e.to_string())?,
     );

@@ -41,7 +41,7 @@ use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::Model;
 use crate::plant::Plant;
 use crate::protocol::{Bus, BusCounters};
-use crate::sim::{BarrierMinimum, barrier_owner};
+use crate::sim::BarrierMinimum;
 
 use crate::hardware::log::FIXED_EXTRA;
 pub use crate::hardware::log::{RunLog, extra_columns};
@@ -202,13 +202,7 @@ pub fn run<P: ServoPort>(
         overruns: 0,
         clamps: Clamps::default(),
         bus: BusCounters::default(),
-        min_barrier: BarrierMinimum {
-            value: f64::INFINITY,
-            barrier: 0,
-            module: 0,
-            corner: 0,
-            t: 0.0,
-        },
+        min_barrier: BarrierMinimum::none(),
         elapsed: 0.0,
         max_compute: 0.0,
         max_age: 0.0,
@@ -332,7 +326,7 @@ fn control_loop<P: ServoPort>(
     let nominal = period.as_secs_f64();
     let barrier_gains = controller.settings().barrier_gains;
     let write_wire = wire_time(14 + 3 * map.n_servos(), baud).as_secs_f64();
-    let corners = model.generated.corners();
+    let barrier_table = model.generated.barrier_table();
     let start = Instant::now();
     ws.first_tick = Some(start);
     let mut next = start;
@@ -471,14 +465,8 @@ fn control_loop<P: ServoPort>(
                 for (j, &b) in ws.barriers.iter().enumerate() {
                     // A NaN barrier (a state outside the model) counts as the lowest.
                     if b < summary.min_barrier.value || b.is_nan() {
-                        let (module, corner) = barrier_owner(corners, j);
-                        summary.min_barrier = BarrierMinimum {
-                            value: if b.is_nan() { f64::NEG_INFINITY } else { b },
-                            barrier: j,
-                            module,
-                            corner,
-                            t,
-                        };
+                        let value = if b.is_nan() { f64::NEG_INFINITY } else { b };
+                        summary.min_barrier = BarrierMinimum::of(barrier_table, j, value, t);
                     }
                 }
                 summary.max_compute = summary.max_compute.max(timing.compute.as_secs_f64());
