@@ -1,7 +1,8 @@
-//! Shared helpers of the integration tests: independent reference evaluations.
-//! Nothing here uses the generated code; tests compare the two.
+//! Shared helpers of the integration tests: independent reference evaluations and
+//! reference integrators. Nothing here uses the generated code.
 
 pub mod alloc;
 pub mod highprec;
+pub mod integrators;
 pub mod reference;
 pub mod robots;
