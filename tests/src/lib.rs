@@ -1,8 +1,11 @@
-//! Shared helpers of the integration tests: independent reference evaluations and
-//! reference integrators. Nothing here uses the generated code.
+//! Shared helpers of the integration tests: independent reference evaluations, reference
+//! integrators and the seeded random source. Nothing here uses the generated code.
 
 pub mod alloc;
 pub mod highprec;
 pub mod integrators;
+pub mod random;
 pub mod reference;
 pub mod robots;
+
+pub use random::{TestRng, rng};
