@@ -4,6 +4,7 @@
 pub mod alloc;
 pub mod highprec;
 pub mod integrators;
+pub mod protocol;
 pub mod random;
 pub mod reference;
 pub mod robots;
