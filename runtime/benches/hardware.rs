@@ -13,12 +13,17 @@ use softcbf::model::Model;
 use softcbf::protocol::encode_sync_write;
 use softcbf_codegen::robot::Robot;
 
-fn iteration(c: &mut Criterion) {
+/// `robots/hardware-example.toml`: six servos, IDs 1–6.
+fn example() -> Robot {
     let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../robots/hardware-example.toml"
     ));
-    let robot = Robot::load(path).unwrap();
+    Robot::load(path).unwrap()
+}
+
+fn iteration(c: &mut Criterion) {
+    let robot = example();
     let set_point = robot.hardware.as_ref().unwrap().set_point.clone();
     let map = TendonMap::new(&robot).unwrap();
     let model = Model::new(robot).unwrap();
@@ -92,11 +97,7 @@ fn iteration(c: &mut Criterion) {
 fn prediction(c: &mut Criterion) {
     use softcbf::hardware::run_loop::prediction_tolerances;
     use softcbf::plant::Plant;
-    let path = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/hardware-example.toml"
-    ));
-    let robot = Robot::load(path).unwrap();
+    let robot = example();
     let model = Model::new(robot).unwrap();
     let mut plant = Plant::new(&model, prediction_tolerances()).unwrap();
     let q = [0.0, 0.0, -0.0556, 0.0, -0.0014, -0.0535];

@@ -2,41 +2,34 @@
 //! a realistic mix of instances (0–6 active rows), plus a repeat of the fast path as a noise estimate.
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use rand::rngs::Xoshiro256PlusPlus;
+use rand::{RngExt, SeedableRng};
+use softcbf::linalg::dot;
 use softcbf::qp::{QpSettings, SafetyQp};
 use std::hint::black_box;
 
 const N: usize = 6;
 const M: usize = 12;
 
-/// Deterministic pseudo-random numbers in [-1, 1) (xorshift), no extra dependency.
-struct Xorshift(u64);
-
-impl Xorshift {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-}
-
 /// Rows with scales over four decades; τ_nom pushed against a random number of rows.
 fn instances(count: usize) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
-    let mut rng = Xorshift(0x9e37_79b9_7f4a_7c15);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x9e37_79b9_7f4a_7c15);
+    let mut next = move || rng.random_range(-1.0..1.0);
     (0..count)
         .map(|k| {
-            let tau_nom: Vec<f64> = (0..N).map(|_| 5.0 * rng.next()).collect();
+            let tau_nom: Vec<f64> = (0..N).map(|_| 5.0 * next()).collect();
             let mut a = vec![0.0; M * N];
             let mut b = vec![0.0; M];
             let pushing = k % 7; // rows that cut τ_nom off
             for i in 0..M {
-                let scale = 10f64.powf(2.0 * rng.next());
+                let scale = 10f64.powf(2.0 * next());
                 for j in 0..N {
-                    a[i * N + j] = scale * rng.next();
+                    a[i * N + j] = scale * next();
                 }
-                let at: f64 = (0..N).map(|j| a[i * N + j] * tau_nom[j]).sum();
-                let norm = (0..N).map(|j| a[i * N + j].powi(2)).sum::<f64>().sqrt();
-                let margin = norm * (0.5 + rng.next().abs());
+                let row = &a[i * N..(i + 1) * N];
+                let at = dot(row, &tau_nom);
+                let norm = dot(row, row).sqrt();
+                let margin = norm * (0.5 + next().abs());
                 b[i] = if i < pushing {
                     at + margin
                 } else {

@@ -10,7 +10,10 @@ use std::f64::consts::PI;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 use std::path::PathBuf;
 
+use rand::RngExt;
 use softcbf_codegen::robot::{Module, Robot, Routing};
+
+use crate::TestRng;
 
 /// Below this `u = θ²`, `f_s`, `f_c` come from their power series (30 terms, exact to the
 /// last bit there); above it from `sin θ`, `cos θ`, where the quotients lose < 4 ulp.
@@ -562,73 +565,47 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
     }
 }
 
-/// Deterministic uniform numbers (SplitMix64), so every random test is reproducible.
-#[derive(Clone, Debug)]
-pub struct SplitMix(pub u64);
-
-impl SplitMix {
-    /// Uniform in `[0, 1)`.
-    pub fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[lo, hi)`.
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next_f64()
-    }
-
-    /// Uniform integer in `0..n`.
-    pub fn below(&mut self, n: usize) -> usize {
-        ((self.next_f64() * n as f64) as usize).min(n - 1)
-    }
-}
-
 /// A bend angle θ from the mixture the tests need: exactly 0, in `[0, 1e-8]`, log-uniform
 /// tiny, right around one of `switch_points` (given in `u = θ²`, both sides, down to one
 /// ulp), or uniform in `[0, 3]` rad.
-pub fn sample_theta(rng: &mut SplitMix, switch_points: &[f64]) -> f64 {
-    match rng.below(10) {
+pub fn sample_theta(rng: &mut TestRng, switch_points: &[f64]) -> f64 {
+    match rng.random_range(0..10) {
         0 => 0.0,
-        1 => 1e-8 * rng.next_f64(),
-        2 => 10f64.powf(rng.uniform(-300.0, -4.0)),
+        1 => 1e-8 * rng.random::<f64>(),
+        2 => 10f64.powf(rng.random_range(-300.0..-4.0)),
         3..=5 if !switch_points.is_empty() => {
-            let uk = switch_points[rng.below(switch_points.len())];
-            let u = match rng.below(4) {
+            let uk = switch_points[rng.random_range(0..switch_points.len())];
+            let u = match rng.random_range(0..4) {
                 0 => uk,
                 1 => uk.next_down(),
                 2 => uk.next_up(),
                 _ => {
-                    let sign = if rng.below(2) == 0 { -1.0 } else { 1.0 };
-                    uk * (1.0 + sign * 10f64.powf(rng.uniform(-15.0, -1.0)))
+                    let sign = if rng.random() { -1.0 } else { 1.0 };
+                    uk * (1.0 + sign * 10f64.powf(rng.random_range(-15.0..-1.0)))
                 }
             };
             u.sqrt()
         }
-        _ => rng.uniform(0.0, 3.0),
+        _ => rng.random_range(0.0..3.0),
     }
 }
 
 /// A module state `(Δx, Δy, δL)` with bend `theta`: a random bend direction (sometimes
 /// along an axis), and `δL` in `[−0.06, 0.06]` m (sometimes exactly 0).
-pub fn sample_module(rng: &mut SplitMix, module: &Module, theta: f64) -> [f64; 3] {
+pub fn sample_module(rng: &mut TestRng, module: &Module, theta: f64) -> [f64; 3] {
     let r = theta * module.tendon_radius;
-    let (dx, dy) = match rng.below(8) {
+    let (dx, dy) = match rng.random_range(0..8) {
         0 => (r, 0.0),
         1 => (0.0, -r),
         _ => {
-            let alpha = rng.uniform(-PI, PI);
+            let alpha = rng.random_range(-PI..PI);
             (r * alpha.cos(), r * alpha.sin())
         }
     };
-    let dl = if rng.below(6) == 0 {
+    let dl = if rng.random_range(0..6) == 0 {
         0.0
     } else {
-        rng.uniform(-0.06, 0.06)
+        rng.random_range(-0.06..0.06)
     };
     [dx, dy, dl]
 }

@@ -2,13 +2,15 @@
 //! dynamics, the PD+ law against its defining property, the filter's pass-through, and the
 //! fallbacks for non-finite states and infeasible rows.
 
+use rand::RngExt;
 use softcbf::cli::load_robot;
 use softcbf::control::{Controller, ControllerSettings, InvalidState, Reference, TickStatus, tick};
 use softcbf::dynamics::{DynamicsWorkspace, forward_dynamics};
 use softcbf::model::Model;
 use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
+use softcbf_tests::TestRng;
 use softcbf_tests::alloc::{CountingAlloc, allocations};
-use softcbf_tests::reference::{SplitMix, stiffness_and_damping};
+use softcbf_tests::reference::stiffness_and_damping;
 
 #[global_allocator]
 static GLOBAL: CountingAlloc = CountingAlloc;
@@ -18,14 +20,14 @@ fn paper_model() -> Model {
 }
 
 /// A random state with bend angles up to about 2 rad and moderate velocities.
-fn random_state(rng: &mut SplitMix, nq: usize) -> (Vec<f64>, Vec<f64>) {
+fn random_state(rng: &mut TestRng, nq: usize) -> (Vec<f64>, Vec<f64>) {
     let q: Vec<f64> = (0..nq)
         .map(|i| match i % 3 {
-            2 => rng.uniform(-0.04, 0.04),
-            _ => rng.uniform(-0.06, 0.06),
+            2 => rng.random_range(-0.04..0.04),
+            _ => rng.random_range(-0.06..0.06),
         })
         .collect();
-    let qd: Vec<f64> = (0..nq).map(|_| rng.uniform(-0.3, 0.3)).collect();
+    let qd: Vec<f64> = (0..nq).map(|_| rng.random_range(-0.3..0.3)).collect();
     (q, qd)
 }
 
@@ -58,14 +60,14 @@ fn hocbf_rows_predict_the_barrier_acceleration() {
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
     let [p1, p2] = controller.settings().barrier_gains;
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(11);
+    let mut rng = softcbf_tests::rng(11);
     let (zero, h) = (zeros(nq), 2e-5);
     let mut worst = 0.0_f64;
     for _ in 0..300 {
         let (q, qd) = random_state(&mut rng, nq);
         let reference = regulation(&zero, &zero);
         tick(&model, &mut controller, &q, &qd, reference);
-        let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-3.0, 3.0)).collect();
+        let tau: Vec<f64> = (0..nq).map(|_| rng.random_range(-3.0..3.0)).collect();
         let mut qdd = zeros(nq);
         forward_dynamics(&model, &mut ws, &q, &qd, &tau, &mut qdd).unwrap();
         let along = |t: f64| -> Vec<f64> {
@@ -120,13 +122,13 @@ fn hold_corrected_rows_predict_the_implicit_euler_step() {
     let mut controller = Controller::new(&model, settings).unwrap();
     let [p1, p2] = controller.settings().barrier_gains;
     let (stiffness, damping) = stiffness_and_damping(&model.robot);
-    let mut rng = SplitMix(14);
+    let mut rng = softcbf_tests::rng(14);
     let zero = zeros(nq);
     for _ in 0..100 {
         let (q, qd) = random_state(&mut rng, nq);
         let reference = regulation(&zero, &zero);
         tick(&model, &mut controller, &q, &qd, reference);
-        let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-3.0, 3.0)).collect();
+        let tau: Vec<f64> = (0..nq).map(|_| rng.random_range(-3.0..3.0)).collect();
         let ws = controller.dynamics();
         // Augmented system [S | M q̇ + Δ(τ − h − G − K q)].
         let mut system: Vec<Vec<f64>> = (0..nq)
@@ -191,10 +193,10 @@ fn pd_plus_torque_reproduces_the_reference_acceleration() {
     settings.filter = false;
     let mut controller = Controller::new(&model, settings).unwrap();
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(12);
+    let mut rng = softcbf_tests::rng(12);
     for trial in 0..200 {
         let (q, mut qd) = random_state(&mut rng, nq);
-        let mut qdd_ref: Vec<f64> = (0..nq).map(|_| rng.uniform(-2.0, 2.0)).collect();
+        let mut qdd_ref: Vec<f64> = (0..nq).map(|_| rng.random_range(-2.0..2.0)).collect();
         if trial % 2 == 0 {
             qd.fill(0.0);
             qdd_ref.fill(0.0);
@@ -243,14 +245,14 @@ fn filter_passes_nominal_torque_when_no_row_is_active() {
     assert_eq!(status, TickStatus::Filtered);
     assert_eq!(controller.qp_report().active, 0);
     assert_eq!(controller.tau(), controller.tau_nom());
-    let mut rng = SplitMix(13);
+    let mut rng = softcbf_tests::rng(13);
     let (mut inactive, mut active) = (0, 0);
     while inactive < 100 {
         let q: Vec<f64> = set_point
             .iter()
-            .map(|s| s + rng.uniform(-5e-5, 5e-5))
+            .map(|s| s + rng.random_range(-5e-5..5e-5))
             .collect();
-        let qd: Vec<f64> = (0..nq).map(|_| rng.uniform(-1e-4, 1e-4)).collect();
+        let qd: Vec<f64> = (0..nq).map(|_| rng.random_range(-1e-4..1e-4)).collect();
         let status = tick(&model, &mut controller, &q, &qd, reference);
         assert_eq!(status, TickStatus::Filtered);
         if controller.qp_report().active == 0 {

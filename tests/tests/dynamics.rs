@@ -1,6 +1,7 @@
 //! The runtime rigid-plate dynamics (`M`, `h = C q̇`, `G`, `K`, `D`, forward dynamics)
 //! against the hand-written jets, finite differences and the identities of MODEL.md §4.
 
+use rand::RngExt;
 use softcbf::dynamics::{
     DynamicsError, DynamicsWorkspace, bias_and_gravity, elastic_energy, forward_dynamics,
     gravity_energy, kinetic_energy, mass_matrix, nonlinear_effects, update_joints,
@@ -8,9 +9,9 @@ use softcbf::dynamics::{
 use softcbf::model::Model;
 use softcbf_codegen::analytic::SWITCH_POINTS;
 use softcbf_codegen::robot::{Module, Robot};
+use softcbf_tests::TestRng;
 use softcbf_tests::reference::{
-    self, SplitMix, dynamics, paper_module, paper_robot, sample_module, sample_theta,
-    stiffness_and_damping,
+    self, dynamics, paper_module, paper_robot, sample_module, sample_theta, stiffness_and_damping,
 };
 
 /// Runtime `M` (row-major), `h`, `G` at `(q, q̇)`.
@@ -61,13 +62,13 @@ fn modules(n: usize, com_offset: f64) -> Vec<Module> {
 
 /// A random state (bends from 0 to 3 rad, including 0 exactly, tiny and around the series
 /// switch points) and velocity.
-fn sample_state<const N: usize>(rng: &mut SplitMix, robot: &Robot) -> ([f64; N], [f64; N]) {
+fn sample_state<const N: usize>(rng: &mut TestRng, robot: &Robot) -> ([f64; N], [f64; N]) {
     let mut q = [0.0; N];
     for (i, module) in robot.modules.iter().enumerate() {
         let theta = sample_theta(rng, &SWITCH_POINTS).min(3.0);
         q[3 * i..3 * i + 3].copy_from_slice(&sample_module(rng, module, theta));
     }
-    (q, std::array::from_fn(|_| rng.uniform(-0.5, 0.5)))
+    (q, std::array::from_fn(|_| rng.random_range(-0.5..0.5)))
 }
 
 fn max_abs<'a>(x: impl IntoIterator<Item = &'a f64>) -> f64 {
@@ -99,7 +100,7 @@ fn cholesky_pivots(a: &[f64], n: usize) -> Vec<f64> {
 fn check_symmetric_positive_definite<const N: usize>(robot: Robot, seed: u64, trials: usize) {
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(seed);
+    let mut rng = softcbf_tests::rng(seed);
     for trial in 0..trials {
         let (q, qd) = if trial == 0 {
             ([0.0; N], [0.0; N])
@@ -139,7 +140,7 @@ fn mass_matrix_symmetric_positive_definite() {
 fn check_against_reference<const N: usize>(robot: Robot, seed: u64, trials: usize) -> f64 {
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(seed);
+    let mut rng = softcbf_tests::rng(seed);
     let mut worst = 0.0_f64;
     for trial in 0..trials {
         let (q, qd) = sample_state::<N>(&mut rng, &robot);
@@ -260,7 +261,7 @@ fn mass_derivatives(
 fn check_bias<const N: usize>(robot: Robot, seed: u64, trials: usize) {
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(seed);
+    let mut rng = softcbf_tests::rng(seed);
     // Step ~1e-5 of the tendon radius: truncation (~step²/d²) and rounding (~eps·d/step)
     // both near 1e-9 of |∂M|.
     let step = 1e-5 * robot.modules[0].tendon_radius;
@@ -316,7 +317,7 @@ fn bias_matches_christoffel_symbols() {
 fn check_gravity<const N: usize>(robot: Robot, seed: u64, trials: usize) {
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(seed);
+    let mut rng = softcbf_tests::rng(seed);
     let step = 1e-5 * robot.modules[0].tendon_radius;
     let zero = [0.0; N];
     for trial in 0..trials {
@@ -384,7 +385,7 @@ fn stiffness_and_damping_diagonals() {
     // The paper's numbers (MODEL.md §7): κθ/d² = 6250 N/m, βθ/d² = 3125 N·s/m.
     let paper = model_of(paper_robot(vec![paper_module(0.0), paper_module(0.0)]));
     assert!((paper.stiffness[0] - 6250.0).abs() < 1e-9 && (paper.damping[1] - 3125.0).abs() < 1e-9);
-    let mut rng = SplitMix(51);
+    let mut rng = softcbf_tests::rng(51);
     for _ in 0..200 {
         let (q, _) = sample_state::<6>(&mut rng, &robot);
         let energy: f64 = robot
@@ -426,7 +427,7 @@ fn stiffness_and_damping_diagonals() {
 fn check_continuity<const N: usize>(robot: Robot, seed: u64, trials: usize) {
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(seed);
+    let mut rng = softcbf_tests::rng(seed);
     for trial in 0..trials {
         let mut q0 = [0.0; N];
         let mut direction = [0.0; N];
@@ -434,17 +435,17 @@ fn check_continuity<const N: usize>(robot: Robot, seed: u64, trials: usize) {
             q0[3 * i + 2] = if trial == 0 {
                 0.0
             } else {
-                rng.uniform(-0.05, 0.05)
+                rng.random_range(-0.05..0.05)
             };
-            let alpha = if trial == 0 {
+            let alpha: f64 = if trial == 0 {
                 0.0
             } else {
-                rng.uniform(-3.2, 3.2)
+                rng.random_range(-3.2..3.2)
             };
             direction[3 * i] = m.tendon_radius * alpha.cos();
             direction[3 * i + 1] = m.tendon_radius * alpha.sin();
         }
-        let qd: [f64; N] = std::array::from_fn(|_| rng.uniform(-0.5, 0.5));
+        let qd: [f64; N] = std::array::from_fn(|_| rng.random_range(-0.5..0.5));
         let even = |ws: &mut DynamicsWorkspace, theta: f64| -> Vec<f64> {
             let plus: [f64; N] = std::array::from_fn(|k| q0[k] + theta * direction[k]);
             let minus: [f64; N] = std::array::from_fn(|k| q0[k] - theta * direction[k]);
@@ -541,12 +542,12 @@ fn forward_dynamics_rejects_non_finite_input() {
 fn check_forward_dynamics<const N: usize>(robot: Robot, seed: u64, trials: usize) {
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(seed);
+    let mut rng = softcbf_tests::rng(seed);
     // K and D written from MODEL.md §4, not read from the model.
     let (k_diag, d_diag) = stiffness_and_damping(&robot);
     for trial in 0..trials {
         let (q, qd) = sample_state::<N>(&mut rng, &robot);
-        let tau: [f64; N] = std::array::from_fn(|_| rng.uniform(-5.0, 5.0));
+        let tau: [f64; N] = std::array::from_fn(|_| rng.random_range(-5.0..5.0));
         let mut qdd = [0.0; N];
         let result = forward_dynamics(&model, &mut ws, &q, &qd, &tau, &mut qdd);
         assert!(result.is_ok(), "trial {trial}, q = {q:?}: {result:?}");
@@ -610,7 +611,7 @@ fn nonlinear_effects_are_bias_plus_gravity() {
     let robot = paper_robot(modules(2, 0.01));
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
-    let mut rng = SplitMix(77);
+    let mut rng = softcbf_tests::rng(77);
     for _ in 0..200 {
         let (q, qd) = sample_state::<6>(&mut rng, &robot);
         update_joints(&model, &mut ws, &q, &qd);

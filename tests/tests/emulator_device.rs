@@ -8,7 +8,7 @@
 //! formats and example packets), written out here rather than taken from the code.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, OnceLock, mpsc};
+use std::sync::{Arc, Mutex, mpsc};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -88,8 +88,7 @@ fn robot() -> Robot {
 }
 
 fn model() -> &'static Model {
-    static MODEL: OnceLock<Model> = OnceLock::new();
-    MODEL.get_or_init(|| Model::new(robot()).unwrap())
+    softcbf_tests::robots::hardware_example_model()
 }
 
 /// The emulated bus, driven with a clock of the test's own.
@@ -982,4 +981,85 @@ fn huge_delays_and_times_do_not_overflow() {
     assert!(bus.wait(Duration::from_secs(3600 * 24 * 365)).is_empty());
     assert_eq!(bus.device.log().fates[ReplyFate::Delayed as usize], 1);
     assert_eq!(bus.device.log().requests, 1);
+}
+
+// ---------------------------------------------------------------------------------------
+// 10. Injected faults
+
+/// The fate of each of `pings` status packets (pings to servo 1, one every 5 ms) under
+/// `faults`.
+fn fates(faults: Faults, pings: usize) -> Vec<ReplyFate> {
+    let mut settings = EmulatorSettings::new(BAUD);
+    settings.faults = faults;
+    let mut bus = Bench::with(settings);
+    let all = [
+        ReplyFate::Sent,
+        ReplyFate::Delayed,
+        ReplyFate::Dropped,
+        ReplyFate::Corrupted,
+        ReplyFate::Silent,
+    ];
+    (0..pings)
+        .map(|_| {
+            let before = bus.device.log().fates;
+            bus.send_raw(&packet(|o| encode_ping(1, o)));
+            let after = bus.device.log().fates;
+            let changed: Vec<_> = all
+                .into_iter()
+                .filter(|&f| after[f as usize] != before[f as usize])
+                .collect();
+            assert_eq!(
+                changed.len(),
+                1,
+                "one reply per ping: {before:?} → {after:?}"
+            );
+            assert_eq!(after[changed[0] as usize], before[changed[0] as usize] + 1);
+            changed[0]
+        })
+        .collect()
+}
+
+#[test]
+fn injected_faults_follow_their_seed_and_their_probabilities() {
+    // A reply is dropped with probability p_d; else corrupted with p_c; else delayed with
+    // p_l; else sent. The delay (1 ms) ends within the 5 ms between pings.
+    let (p_d, p_c, p_l) = (0.2, 0.1, 0.1);
+    let faults = |seed| Faults {
+        drop: p_d,
+        corrupt: p_c,
+        delay: Duration::from_millis(1),
+        delay_fraction: p_l,
+        seed,
+        ..Faults::default()
+    };
+    const N: usize = 2000;
+    let first = fates(faults(5), N);
+    assert_eq!(first, fates(faults(5), N), "the same seed, the same faults");
+    let other = fates(faults(6), N);
+    let differ = first.iter().zip(&other).filter(|(a, b)| a != b).count();
+    // Two independent runs agree on a reply with probability Σ pᵢ² ≈ 0.48.
+    assert!(
+        differ > N / 3,
+        "another seed, other faults: {differ} of {N} differ"
+    );
+    for run in [&first, &other] {
+        let expected = [
+            (ReplyFate::Dropped, p_d),
+            (ReplyFate::Corrupted, (1.0 - p_d) * p_c),
+            (ReplyFate::Delayed, (1.0 - p_d) * (1.0 - p_c) * p_l),
+            (ReplyFate::Sent, (1.0 - p_d) * (1.0 - p_c) * (1.0 - p_l)),
+            (ReplyFate::Silent, 0.0),
+        ];
+        for (fate, p) in expected {
+            let count = run.iter().filter(|&&f| f == fate).count() as f64;
+            let (mean, sd) = (N as f64 * p, (N as f64 * p * (1.0 - p)).sqrt());
+            // Five standard deviations of the binomial count: a false alarm about once in
+            // 10⁶ runs, while a draw that is wrong (a stuck generator, a fault decided
+            // from the wrong draw) is off by far more.
+            assert!(
+                (count - mean).abs() <= 5.0 * sd,
+                "{fate:?}: {count} of {N}, expected {mean:.0} ± {sd:.0}"
+            );
+        }
+    }
 }

@@ -10,9 +10,10 @@ use softcbf::dynamics::{
     DynamicsWorkspace, bias_and_gravity, elastic_energy, forward_dynamics, gravity_energy,
     kinetic_energy, solve_mass_matrix, update_joints,
 };
-use softcbf::integrator::{DormandPrince, OdeSystem, Tolerances};
+use softcbf::integrator::{OdeSystem, Tolerances};
 use softcbf::model::Model;
 use softcbf_codegen::robot::Robot;
+use softcbf_tests::integrators::DormandPrince;
 
 /// The undamped, unactuated plant `x = (q, q̇)`, optionally with `h` scaled by
 /// `1 + bias_error` (the control run that must not conserve energy).

@@ -3,9 +3,9 @@
 
 use std::f64::consts::PI;
 
+use rand::RngExt;
 use softcbf::hardware::mapping::{Clamps, TendonMap};
 use softcbf_codegen::robot::Robot;
-use softcbf_tests::reference::SplitMix;
 
 fn example() -> (Robot, TendonMap) {
     let robot = softcbf_tests::robots::hardware_example();
@@ -29,12 +29,12 @@ fn tensions_by_hand(tau: [f64; 3]) -> [f64; 3] {
 #[test]
 fn tensions_match_the_closed_form_and_round_trip() {
     let (_, map) = example();
-    let mut rng = SplitMix(7);
+    let mut rng = softcbf_tests::rng(7);
     let mut tensions = [0.0; 6];
     let mut back = [0.0; 6];
     for _ in 0..200 {
         // τ from tensions inside the limits [0.2, 40], so nothing is clamped.
-        let f: [f64; 6] = std::array::from_fn(|_| 0.2 + 39.8 * rng.next_f64());
+        let f: [f64; 6] = std::array::from_fn(|_| 0.2 + 39.8 * rng.random::<f64>());
         let mut tau = [0.0; 6];
         map.tau_from_tensions(&f, &mut tau);
         for i in 0..2 {
@@ -101,11 +101,11 @@ fn servo_angles_of_a_hand_computed_bend() {
 #[test]
 fn configurations_and_velocities_round_trip() {
     let (_, map) = example();
-    let mut rng = SplitMix(11);
+    let mut rng = softcbf_tests::rng(11);
     let (mut angles, mut rates, mut q2, mut qd2) = ([0.0; 6], [0.0; 6], [0.0; 6], [0.0; 6]);
     for _ in 0..200 {
-        let q: [f64; 6] = std::array::from_fn(|_| 0.1 * (rng.next_f64() - 0.5));
-        let qd: [f64; 6] = std::array::from_fn(|_| rng.next_f64() - 0.5);
+        let q: [f64; 6] = std::array::from_fn(|_| 0.1 * (rng.random::<f64>() - 0.5));
+        let qd: [f64; 6] = std::array::from_fn(|_| rng.random::<f64>() - 0.5);
         map.angles_from_q(&q, &mut angles);
         map.rates_from_qd(&qd, &mut rates);
         map.q_from_angles(&angles, &mut q2);
@@ -161,9 +161,9 @@ fn tension_limit_rows_are_the_tension_limits() {
     let (rows, rhs) = map.tension_limit_rows();
     let nq = 6;
     assert_eq!((rows.len(), rhs.len()), (2 * nq * nq, 2 * nq));
-    let mut rng = SplitMix(8);
+    let mut rng = softcbf_tests::rng(8);
     for _ in 0..500 {
-        let tau: Vec<f64> = (0..nq).map(|_| rng.uniform(-20.0, 20.0)).collect();
+        let tau: Vec<f64> = (0..nq).map(|_| rng.random_range(-20.0..20.0)).collect();
         for (i, hw) in robot.hardware.as_ref().unwrap().modules.iter().enumerate() {
             let [f_min, f_max] = hw.tension_limits;
             let f = tensions_by_hand([tau[3 * i], tau[3 * i + 1], tau[3 * i + 2]]);

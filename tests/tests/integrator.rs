@@ -7,9 +7,9 @@
 use std::f64::consts::PI;
 
 use softcbf::integrator::{
-    DenseW, DormandPrince, IntegratorError, MechanicalW, OdeSystem, ROS34PW2, Rosenbrock, Stats,
-    Tolerances, WSolve, dormand_prince_tableau,
+    IntegratorError, MechanicalW, OdeSystem, ROS34PW2, Rosenbrock, Stats, Tolerances, WSolve,
 };
+use softcbf_tests::integrators::{DenseW, DormandPrince, Jacobian, dormand_prince_tableau};
 
 use softcbf_tests::alloc::{CountingAlloc, allocations};
 
@@ -56,9 +56,9 @@ impl OdeSystem for LimitCycle {
         dx[1] = x[0] + x[1] * s;
         true
     }
-    fn has_jacobian(&self) -> bool {
-        true
-    }
+}
+
+impl Jacobian for LimitCycle {
     fn jacobian(&mut self, _t: f64, x: &[f64], j: &mut [f64]) -> bool {
         let s = 1.0 - x[0] * x[0] - x[1] * x[1];
         j[0] = s - 2.0 * x[0] * x[0];
@@ -783,7 +783,7 @@ fn rosenbrock_order_3_with_exact_and_approximate_jacobian() {
     };
     // Exact (analytic) Jacobian.
     let mut exact_w = |r: &mut Rosenbrock, x: &mut [f64], n: usize| {
-        let mut s = DenseW::new(LimitCycle);
+        let mut s = DenseW::with_jacobian(LimitCycle);
         s.autonomous = true;
         r.integrate_fixed(&mut s, 0.0, T_END, x, n).unwrap();
     };

@@ -1,14 +1,16 @@
 //! The generated kinematics (segment transforms, plate poses, barriers, their Jacobians and
 //! `J̇q̇`, joint terms) against the hand-written jets, double-double series and quadrature.
 
+use rand::RngExt;
 use softcbf_codegen::analytic::SWITCH_POINTS;
 use softcbf_codegen::layout::pack_params;
 use softcbf_codegen::robot::{Module, Robot};
 use softcbf_generated::{hex_4, paper_sim};
+use softcbf_tests::TestRng;
 use softcbf_tests::highprec::{DD, fs_fc_reference};
 use softcbf_tests::reference::{
-    self, Jet, Mat3, SplitMix, Vec3, chain, corner_height, mat_value, motion_subspace,
-    sample_module, sample_theta, segment_value,
+    self, Jet, Mat3, Vec3, chain, corner_height, mat_value, motion_subspace, sample_module,
+    sample_theta, segment_value,
 };
 
 const NQ: usize = paper_sim::NQ;
@@ -36,13 +38,13 @@ fn paper() -> (Robot, [f64; paper_sim::NP]) {
 }
 
 /// A random state of every module of `robot` and a random velocity.
-fn sample_state<const N: usize>(rng: &mut SplitMix, robot: &Robot) -> ([f64; N], [f64; N]) {
+fn sample_state<const N: usize>(rng: &mut TestRng, robot: &Robot) -> ([f64; N], [f64; N]) {
     let mut q = [0.0; N];
     for (i, module) in robot.modules.iter().enumerate() {
         let theta = sample_theta(rng, &SWITCH_POINTS);
         q[3 * i..3 * i + 3].copy_from_slice(&sample_module(rng, module, theta));
     }
-    let qd = std::array::from_fn(|_| rng.uniform(-0.2, 0.2));
+    let qd = std::array::from_fn(|_| rng.random_range(-0.2..0.2));
     (q, qd)
 }
 
@@ -81,7 +83,7 @@ fn shifted<const N: usize>(q: &[f64; N], dir: &[f64; N], h: f64) -> [f64; N] {
 #[test]
 fn barrier_terms_against_finite_differences_and_jets() {
     let (robot, p) = paper();
-    let mut rng = SplitMix(0x5eed_0001);
+    let mut rng = softcbf_tests::rng(0x5eed_0001);
     let mut worst = (0.0, String::new());
     for trial in 0..1500 {
         let (q, qd) = sample_state::<NQ>(&mut rng, &robot);
@@ -202,7 +204,7 @@ fn generated_transforms(p: &[f64; paper_sim::NP], q: &[f64; NQ]) -> [[[f64; 4]; 
 #[test]
 fn transforms_and_corner_heights_against_reference() {
     let (robot, p) = paper();
-    let mut rng = SplitMix(0x5eed_0002);
+    let mut rng = softcbf_tests::rng(0x5eed_0002);
     let mut worst = 0.0_f64;
     for trial in 0..3000 {
         let (q, _) = sample_state::<NQ>(&mut rng, &robot);
@@ -398,7 +400,7 @@ fn exact_limits_when_straight() {
 #[test]
 fn rotation_is_orthonormal() {
     let (robot, p) = paper();
-    let mut rng = SplitMix(0x5eed_0003);
+    let mut rng = softcbf_tests::rng(0x5eed_0003);
     for _ in 0..3000 {
         let (q, _) = sample_state::<NQ>(&mut rng, &robot);
         for tf in generated_transforms(&p, &q) {
@@ -425,7 +427,7 @@ fn rotation_is_orthonormal() {
 #[test]
 fn translation_is_integral_of_backbone_tangent() {
     let (robot, p) = paper();
-    let mut rng = SplitMix(0x5eed_0004);
+    let mut rng = softcbf_tests::rng(0x5eed_0004);
     for _ in 0..300 {
         let (q, _) = sample_state::<NQ>(&mut rng, &robot);
         let transforms = generated_transforms(&p, &q);
@@ -475,7 +477,7 @@ fn translation_is_integral_of_backbone_tangent() {
 #[test]
 fn corner_height_is_height_of_corner_point() {
     let (robot, p) = paper();
-    let mut rng = SplitMix(0x5eed_0005);
+    let mut rng = softcbf_tests::rng(0x5eed_0005);
     for _ in 0..3000 {
         let (q, _) = sample_state::<NQ>(&mut rng, &robot);
         let transforms = generated_transforms(&p, &q);
@@ -525,7 +527,7 @@ fn plate_poses_are_products_of_segment_transforms() {
         .try_into()
         .expect("hex_4 parameter count");
     let (robot2, p2) = paper();
-    let mut rng = SplitMix(0x5eed_0006);
+    let mut rng = softcbf_tests::rng(0x5eed_0006);
     for _ in 0..1000 {
         let (q, qd) = sample_state::<{ hex_4::NQ }>(&mut rng, &robot4);
         let mut transforms = [[[0.0; 4]; 4]; 4];
@@ -652,7 +654,7 @@ fn generated_joint_terms(p: &[f64; paper_sim::NP], q: &[f64; NQ], qd: &[f64; NQ]
 #[test]
 fn joint_terms_against_jets_and_finite_differences() {
     let (robot, p) = paper();
-    let mut rng = SplitMix(0x5eed_0007);
+    let mut rng = softcbf_tests::rng(0x5eed_0007);
     for _ in 0..1500 {
         let (q, qd) = sample_state::<NQ>(&mut rng, &robot);
         let (rot, tr, s, c) = generated_joint_terms(&p, &q, &qd);

@@ -3,8 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use rand::rngs::SmallRng;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use softcbf::plot::{
     COLUMN_WIDTH, FIGURE_HEIGHT, LEGEND_WIDTH, PlotError, coordinate_labels, draw_figures, envelope,
 };
@@ -138,7 +137,7 @@ fn coordinate_labels_follow_the_paper() {
 
 #[test]
 fn envelope_keeps_extrema_and_bounds_the_points() {
-    let mut rng = SmallRng::seed_from_u64(11);
+    let mut rng = softcbf_tests::rng(11);
     for _ in 0..50 {
         let len = rng.random_range(1..5000usize);
         let buckets = rng.random_range(1..700usize);

@@ -605,20 +605,7 @@ fn wire_byte() -> impl Strategy<Value = u8> {
 }
 
 fn instruction() -> impl Strategy<Value = Instruction> {
-    prop::sample::select(vec![
-        Instruction::Ping,
-        Instruction::Read,
-        Instruction::Write,
-        Instruction::RegWrite,
-        Instruction::Action,
-        Instruction::FactoryReset,
-        Instruction::Reboot,
-        Instruction::Clear,
-        Instruction::SyncRead,
-        Instruction::SyncWrite,
-        Instruction::BulkRead,
-        Instruction::BulkWrite,
-    ])
+    prop::sample::select(&softcbf_tests::protocol::INSTRUCTIONS[..])
 }
 
 fn instruction_id() -> impl Strategy<Value = u8> {

@@ -4,7 +4,6 @@
 //!
 //! Case counts are bounded so the file runs in a few seconds optimized.
 
-use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use proptest::prelude::*;
@@ -28,8 +27,7 @@ fn robot() -> Robot {
 }
 
 fn model() -> &'static Model {
-    static MODEL: OnceLock<Model> = OnceLock::new();
-    MODEL.get_or_init(|| Model::new(robot()).unwrap())
+    softcbf_tests::robots::hardware_example_model()
 }
 
 /// Pushes `bytes` in pieces of the given sizes, draining after each; the packets and
@@ -68,20 +66,7 @@ fn decode(decoder: &mut Decoder, bytes: &[u8], pieces: &[usize]) -> Vec<Result<P
 }
 
 fn instruction() -> impl Strategy<Value = Instruction> {
-    prop::sample::select(vec![
-        Instruction::Ping,
-        Instruction::Read,
-        Instruction::Write,
-        Instruction::RegWrite,
-        Instruction::Action,
-        Instruction::FactoryReset,
-        Instruction::Reboot,
-        Instruction::Clear,
-        Instruction::SyncRead,
-        Instruction::SyncWrite,
-        Instruction::BulkRead,
-        Instruction::BulkWrite,
-    ])
+    prop::sample::select(&softcbf_tests::protocol::INSTRUCTIONS[..])
 }
 
 /// A valid instruction or status packet.

@@ -3,10 +3,10 @@
 
 #![allow(clippy::needless_range_loop)] // index-heavy numeric checks read clearer with indices
 
-use rand::rngs::SmallRng;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use softcbf::qp::{QpSettings, QpSetupError, QpSolver, QpStatus, SafetyQp};
 
+use softcbf_tests::TestRng;
 use softcbf_tests::alloc::{CountingAlloc, allocations};
 
 #[global_allocator]
@@ -25,7 +25,7 @@ struct Instance {
 /// Feasible by construction: every row holds at a point `tau_f`. The kind selects
 /// scaled rows, duplicates, near-parallel rows, rows through `tau_nom`, all
 /// inactive and many-active (all rows through one point) cases.
-fn feasible_instance(rng: &mut SmallRng, kind: usize) -> Instance {
+fn feasible_instance(rng: &mut TestRng, kind: usize) -> Instance {
     let (n, m) = if rng.random::<f64>() < 0.8 {
         (6, 12)
     } else {
@@ -120,7 +120,7 @@ fn kkt_residual(inst: &Instance, tau: &[f64], lambda: &[f64]) -> f64 {
 
 #[test]
 fn kkt_holds_on_random_feasible_instances() {
-    let mut rng = SmallRng::seed_from_u64(7);
+    let mut rng = softcbf_tests::rng(7);
     let count = 100_000;
     let mut solvers: Vec<Option<SafetyQp>> = (0..25 * 97).map(|_| None).collect();
     let mut worst = 0.0_f64;
@@ -150,7 +150,7 @@ fn kkt_holds_on_random_feasible_instances() {
 
 #[test]
 fn fast_path_agrees_with_clarabel() {
-    let mut rng = SmallRng::seed_from_u64(11);
+    let mut rng = softcbf_tests::rng(11);
     let count = 10_200;
     let reference = QpSettings {
         use_fast_path: false,
@@ -293,7 +293,7 @@ fn contradictory_rows_are_relaxed() {
 
 #[test]
 fn random_infeasible_instances_are_relaxed_optimally() {
-    let mut rng = SmallRng::seed_from_u64(3);
+    let mut rng = softcbf_tests::rng(3);
     let rho = QpSettings::default().slack_penalty;
     let mut worst = 0.0_f64;
     let mut failed = 0;
@@ -412,7 +412,7 @@ fn non_finite_input_fails_with_nan() {
 
 #[test]
 fn feasible_tau_nom_is_returned_exactly() {
-    let mut rng = SmallRng::seed_from_u64(5);
+    let mut rng = softcbf_tests::rng(5);
     for k in 0..2000 {
         let inst = feasible_instance(&mut rng, 3);
         for use_fast_path in [true, false] {
@@ -469,7 +469,7 @@ fn settings_are_validated() {
 
 #[test]
 fn fast_path_does_not_allocate() {
-    let mut rng = SmallRng::seed_from_u64(9);
+    let mut rng = softcbf_tests::rng(9);
     let mut instances: Vec<Instance> = Vec::new();
     while instances.len() < 200 {
         let inst = feasible_instance(&mut rng, instances.len());

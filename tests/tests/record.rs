@@ -3,10 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use rand::rngs::SmallRng;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use softcbf::record::{Columns, CsvWriter, Record, RecordError, Row};
 
+use softcbf_tests::TestRng;
 use softcbf_tests::alloc::{CountingAlloc, allocations};
 
 #[global_allocator]
@@ -48,10 +48,10 @@ const SPECIAL: [f64; 22] = [
 /// A record of `rows` random rows; values mix random bit patterns, wide-range decimals
 /// and [`SPECIAL`].
 fn random_record(n: usize, m: usize, extra: &[&str], rows: usize, seed: u64) -> Record {
-    let mut rng = SmallRng::seed_from_u64(seed);
+    let mut rng = softcbf_tests::rng(seed);
     let mut record = Record::with_capacity(n, m, extra, rows).unwrap();
     let width = record.columns().width();
-    let value = |rng: &mut SmallRng| match rng.random_range(0..4u32) {
+    let value = |rng: &mut TestRng| match rng.random_range(0..4u32) {
         0 => f64::from_bits(rng.random::<u64>()),
         1 => SPECIAL[rng.random_range(0..SPECIAL.len())],
         2 => rng.random_range(-1.0..1.0) * 10f64.powi(rng.random_range(-20..20)),
@@ -375,18 +375,18 @@ fn push_row_does_not_allocate_within_capacity() {
     let q = vec![0.01; n];
     let b = vec![0.02; m];
     let extra = [12.5, 0.0, 1.0];
+    let row_at = |t| Row {
+        t,
+        q: &q,
+        qd: &q,
+        tau: &q,
+        tau_nom: &q,
+        b: &b,
+        extra: &extra,
+    };
     let before = allocations();
     for k in 0..rows {
-        let row = Row {
-            t: k as f64 * 1e-3,
-            q: &q,
-            qd: &q,
-            tau: &q,
-            tau_nom: &q,
-            b: &b,
-            extra: &extra,
-        };
-        record.push_row(&row).unwrap();
+        record.push_row(&row_at(k as f64 * 1e-3)).unwrap();
     }
     assert_eq!(
         allocations() - before,
@@ -396,15 +396,7 @@ fn push_row_does_not_allocate_within_capacity() {
     assert_eq!(record.len(), rows);
 
     // Beyond capacity the record still grows (and the counter sees it).
-    let row = Row {
-        t: 9.0,
-        q: &q,
-        qd: &q,
-        tau: &q,
-        tau_nom: &q,
-        b: &b,
-        extra: &extra,
-    };
+    let row = row_at(9.0);
     let before = allocations();
     record.push_row(&row).unwrap();
     assert!(allocations() > before);

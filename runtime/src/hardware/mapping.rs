@@ -13,6 +13,7 @@
 //!
 //! Every function writes into caller-provided slices and allocates nothing.
 
+use nalgebra::{Matrix3, Vector3};
 use softcbf_codegen::hardware::{Hardware, ModuleHardware};
 use softcbf_codegen::robot::Robot;
 
@@ -26,6 +27,14 @@ pub enum MappingError {
     NoHardware {
         /// The robot file.
         file: String,
+    },
+    /// A module's tendon matrix `A_i` has no inverse (tendon angles that coincide).
+    #[error("{file}: the tendons of module {module} do not span its coordinates")]
+    SingularTendons {
+        /// The robot file.
+        file: String,
+        /// The module (from 0).
+        module: usize,
     },
 }
 
@@ -49,10 +58,10 @@ impl Clamps {
 /// One module's constant matrices and calibration.
 #[derive(Clone, Debug)]
 struct ModuleMap {
-    /// `A_i`, row-major: `a[r][k]` is row `r` of tendon column `k`.
-    a: [[f64; 3]; 3],
-    /// `A_i⁻¹`, row-major.
-    a_inv: [[f64; 3]; 3],
+    /// `A_i`: column `k` is tendon `k`'s `(cos ψ_k, sin ψ_k, −1)`.
+    a: Matrix3<f64>,
+    /// `A_i⁻¹`.
+    a_inv: Matrix3<f64>,
     rest_length: f64,
     hardware: ModuleHardware,
 }
@@ -69,20 +78,9 @@ pub struct TendonMap {
     hardware: Hardware,
 }
 
-fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    let mut inv = [[0.0; 3]; 3];
-    for (r, row) in inv.iter_mut().enumerate() {
-        for (c, entry) in row.iter_mut().enumerate() {
-            // Cofactor of m[c][r] (transpose), by cyclic indices.
-            let (r1, r2) = ((c + 1) % 3, (c + 2) % 3);
-            let (c1, c2) = ((r + 1) % 3, (r + 2) % 3);
-            *entry = (m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]) / det;
-        }
-    }
-    inv
+/// The three entries of module `i` in a vector over all coordinates or servos.
+fn part(v: &[f64], i: usize) -> Vector3<f64> {
+    Vector3::from_column_slice(&v[3 * i..3 * i + 3])
 }
 
 impl TendonMap {
@@ -98,21 +96,28 @@ impl TendonMap {
             .modules
             .iter()
             .zip(&hardware.modules)
-            .map(|(module, hw)| {
-                let mut a = [[0.0; 3]; 3];
-                for (k, psi) in module.tendon_angles.iter().enumerate() {
-                    a[0][k] = psi.cos();
-                    a[1][k] = psi.sin();
-                    a[2][k] = -1.0;
-                }
-                ModuleMap {
+            .enumerate()
+            .map(|(i, (module, hw))| {
+                let psi = &module.tendon_angles;
+                let a = Matrix3::from_fn(|r, k| match r {
+                    0 => psi[k].cos(),
+                    1 => psi[k].sin(),
+                    _ => -1.0,
+                });
+                let a_inv = a
+                    .try_inverse()
+                    .ok_or_else(|| MappingError::SingularTendons {
+                        file: robot.source.display().to_string(),
+                        module: i,
+                    })?;
+                Ok(ModuleMap {
                     a,
-                    a_inv: invert3(&a),
+                    a_inv,
                     rest_length: module.rest_length,
                     hardware: hw.clone(),
-                }
+                })
             })
-            .collect();
+            .collect::<Result<_, _>>()?;
         Ok(TendonMap { modules, hardware })
     }
 
@@ -131,14 +136,12 @@ impl TendonMap {
         for (i, m) in self.modules.iter().enumerate() {
             let hw = &m.hardware;
             // y_k = L0 − ℓ_k, then q_i = A⁻ᵀ y.
-            let y: [f64; 3] = std::array::from_fn(|k| {
+            let y = Vector3::from_fn(|k, _| {
                 let length = hw.zero_lengths[k]
                     - hw.pulley_radius * hw.directions[k] * (angles[3 * i + k] - hw.zero_angles[k]);
                 m.rest_length - length
             });
-            for r in 0..3 {
-                q[3 * i + r] = (0..3).map(|k| m.a_inv[k][r] * y[k]).sum();
-            }
+            q[3 * i..3 * i + 3].copy_from_slice(m.a_inv.tr_mul(&y).as_slice());
         }
     }
 
@@ -147,11 +150,8 @@ impl TendonMap {
         for (i, m) in self.modules.iter().enumerate() {
             let hw = &m.hardware;
             // ℓ̇_k = −ρ s_k θ̇_k and q̇_i = −A⁻ᵀ ℓ̇ = A⁻ᵀ (ρ s θ̇).
-            let y: [f64; 3] =
-                std::array::from_fn(|k| hw.pulley_radius * hw.directions[k] * rates[3 * i + k]);
-            for r in 0..3 {
-                qd[3 * i + r] = (0..3).map(|k| m.a_inv[k][r] * y[k]).sum();
-            }
+            let y = Vector3::from_fn(|k, _| hw.pulley_radius * hw.directions[k] * rates[3 * i + k]);
+            qd[3 * i..3 * i + 3].copy_from_slice(m.a_inv.tr_mul(&y).as_slice());
         }
     }
 
@@ -159,9 +159,9 @@ impl TendonMap {
     pub fn angles_from_q(&self, q: &[f64], angles: &mut [f64]) {
         for (i, m) in self.modules.iter().enumerate() {
             let hw = &m.hardware;
+            let aq = m.a.tr_mul(&part(q, i));
             for k in 0..3 {
-                let aq: f64 = (0..3).map(|r| m.a[r][k] * q[3 * i + r]).sum();
-                let length = m.rest_length - aq;
+                let length = m.rest_length - aq[k];
                 angles[3 * i + k] = hw.zero_angles[k]
                     + (hw.zero_lengths[k] - length) / (hw.pulley_radius * hw.directions[k]);
             }
@@ -172,9 +172,9 @@ impl TendonMap {
     pub fn rates_from_qd(&self, qd: &[f64], rates: &mut [f64]) {
         for (i, m) in self.modules.iter().enumerate() {
             let hw = &m.hardware;
+            let aqd = m.a.tr_mul(&part(qd, i));
             for k in 0..3 {
-                let aqd: f64 = (0..3).map(|r| m.a[r][k] * qd[3 * i + r]).sum();
-                rates[3 * i + k] = aqd / (hw.pulley_radius * hw.directions[k]);
+                rates[3 * i + k] = aqd[k] / (hw.pulley_radius * hw.directions[k]);
             }
         }
     }
@@ -188,8 +188,8 @@ impl TendonMap {
         let mut clamps = Clamps::default();
         for (i, m) in self.modules.iter().enumerate() {
             let [f_min, f_max] = m.hardware.tension_limits;
-            for k in 0..3 {
-                let f: f64 = (0..3).map(|r| m.a_inv[k][r] * tau[3 * i + r]).sum();
+            let f_free = m.a_inv * part(tau, i);
+            for (k, &f) in f_free.iter().enumerate() {
                 tensions[3 * i + k] = if f.is_nan() || f < f_min {
                     if f.is_nan() || f < f_min - CLAMP_TOLERANCE {
                         clamps.low += 1;
@@ -220,7 +220,7 @@ impl TendonMap {
                 for (sign, bound) in [(1.0, f_min), (-1.0, -f_max)] {
                     let mut row = vec![0.0; nq];
                     for r in 0..3 {
-                        row[3 * i + r] = sign * m.a_inv[k][r];
+                        row[3 * i + r] = sign * m.a_inv[(k, r)];
                     }
                     rows.extend(row);
                     rhs.push(bound);
@@ -233,9 +233,7 @@ impl TendonMap {
     /// Generalized forces `τ_i = A_i f_i` of tensions \[N\].
     pub fn tau_from_tensions(&self, tensions: &[f64], tau: &mut [f64]) {
         for (i, m) in self.modules.iter().enumerate() {
-            for r in 0..3 {
-                tau[3 * i + r] = (0..3).map(|k| m.a[r][k] * tensions[3 * i + k]).sum();
-            }
+            tau[3 * i..3 * i + 3].copy_from_slice((m.a * part(tensions, i)).as_slice());
         }
     }
 

@@ -1,5 +1,5 @@
-//! Adaptive time integrators for the simulated plant between control ticks (zero-order hold).
-//! A Rosenbrock-W method (ROS34PW2) for the stiff plant, Dormand–Prince 5(4) as explicit reference.
+//! The adaptive time integrator of the simulated plant between control ticks (zero-order
+//! hold): a Rosenbrock-W method (ROS34PW2) with the mechanical `W` of the stiff plant.
 //!
 //! # Problem
 //!
@@ -9,20 +9,20 @@
 //! 0.05–0.4 kg give eigenvalues down to ≈ −3·10⁴ s⁻¹, far beyond the explicit stability limit
 //! of a 1 ms step, and every tick's new `τ` restarts a fast transient.
 //!
-//! # Methods
+//! # Method
 //!
-//! * [`Rosenbrock`]: ROS34PW2 (Rang & Angermann 2005), a 4-stage Rosenbrock-W method: order 3
-//!   with *any* matrix `J̃` in `W = I − γ h J̃` (a W-method), L-stable and stiffly accurate,
-//!   embedded order-2 solution for error control. Each step costs 4 rhs evaluations, one
-//!   preparation of `W` and 4 solves. [`MechanicalW`] provides `W` for mechanical systems from
-//!   `M`, `K̃`, `D̃` frozen at the step start: `J̃ = [[0, I], [−M⁻¹K̃, −M⁻¹D̃]]`, whose solve
-//!   reduces to one SPD `n×n` system. [`DenseW`] provides `W` for any system from a
-//!   finite-difference (or analytic) Jacobian and an LU factorization.
-//! * [`DormandPrince`]: the explicit 5(4) pair with FSAL and PI step control, for non-stiff
-//!   reference runs and energy checks at tight tolerances.
+//! [`Rosenbrock`]: ROS34PW2 (Rang & Angermann 2005), a 4-stage Rosenbrock-W method: order 3
+//! with *any* matrix `J̃` in `W = I − γ h J̃` (a W-method), L-stable and stiffly accurate,
+//! embedded order-2 solution for error control. Each step costs 4 rhs evaluations, one
+//! preparation of `W` and 4 solves. [`MechanicalW`] provides `W` for mechanical systems from
+//! `M`, `K̃`, `D̃` frozen at the step start: `J̃ = [[0, I], [−M⁻¹K̃, −M⁻¹D̃]]`, whose solve
+//! reduces to one SPD `n×n` system. The integrator keeps its step size between calls, so
+//! consecutive ticks start warm, and allocates nothing after construction.
 //!
-//! Both keep their step size between calls, so consecutive ticks start warm, and allocate
-//! nothing after construction.
+//! The reference integrators of the comparison below — explicit Dormand–Prince 5(4) and a
+//! dense `W` from a finite-difference or analytic Jacobian — live in the tests crate
+//! (`softcbf_tests::integrators`), built on [`OdeSystem`], [`WSolve`], [`Tolerances`],
+//! [`error_norm`] and [`check_call`]: nothing in the runtime runs them.
 //!
 //! # Why this method (measured)
 //!
@@ -57,13 +57,11 @@
 //! treatment of the linear `K`, `D` part would need a matrix exponential of the `2n×2n` system
 //! with `M(q)` refrozen every tick, for a gain the W-method already delivers.
 
-mod dopri;
 mod rosenbrock;
 mod wsolve;
 
-pub use dopri::{DormandPrince, dormand_prince_tableau};
 pub use rosenbrock::{ROS34PW2, Rosenbrock, RosenbrockTableau};
-pub use wsolve::{DenseW, MechanicalW};
+pub use wsolve::MechanicalW;
 
 /// A first-order system `x' = f(t, x)`.
 pub trait OdeSystem {
@@ -74,18 +72,6 @@ pub trait OdeSystem {
     /// evaluation failed or produced a non-finite value; the integrator then reduces the step
     /// or reports [`IntegratorError::NonFinite`].
     fn rhs(&mut self, t: f64, x: &[f64], dx: &mut [f64]) -> bool;
-
-    /// Whether [`OdeSystem::jacobian`] is implemented (default `false`: [`DenseW`] then uses
-    /// finite differences).
-    fn has_jacobian(&self) -> bool {
-        false
-    }
-
-    /// Writes `∂f/∂x` (row-major `dim×dim`) into `jac`. Only called if
-    /// [`OdeSystem::has_jacobian`] is `true`; returns `false` on failure.
-    fn jacobian(&mut self, _t: f64, _x: &[f64], _jac: &mut [f64]) -> bool {
-        false
-    }
 }
 
 /// What a Rosenbrock-W method needs besides `f`: the matrix `W = I − γ h J̃` with `J̃` any
@@ -109,7 +95,7 @@ pub trait WSolve: OdeSystem {
     }
 }
 
-/// Error control settings shared by the integrators. Tolerances are per component: a step
+/// Error control settings of an integrator. Tolerances are per component: a step
 /// is accepted when the RMS over `i` of `err_i / (atol + rtol · max(|x_i|, |x_new_i|))` ≤ 1.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tolerances {
@@ -177,8 +163,8 @@ pub struct Stats {
     pub steps: usize,
     /// Rejected step attempts (error too large or a non-finite evaluation).
     pub rejected: usize,
-    /// Right-hand-side evaluations made by the integrator itself (a [`DenseW`]'s
-    /// finite-difference evaluations are counted by [`DenseW::jacobian_rhs_evals`]).
+    /// Right-hand-side evaluations made by the integrator itself (those a [`WSolve`] makes
+    /// to build `W`, such as a finite-difference Jacobian's, are its own to count).
     pub rhs_evals: usize,
     /// Calls of [`WSolve::prepare_w`] (0 for explicit methods).
     pub w_factorizations: usize,
@@ -219,8 +205,9 @@ pub enum IntegratorError {
     InvalidTolerances { field: &'static str },
 }
 
-/// Scaled RMS norm of `err` with the tolerances relative to `max(|x|, |x_new|)`.
-pub(crate) fn error_norm(tol: &Tolerances, x: &[f64], x_new: &[f64], err: &[f64]) -> f64 {
+/// Scaled RMS norm of a step's error estimate `err`, the tolerances relative to
+/// `max(|x|, |x_new|)`: the step is accepted when it is at most 1 (see [`Tolerances`]).
+pub fn error_norm(tol: &Tolerances, x: &[f64], x_new: &[f64], err: &[f64]) -> f64 {
     let mut s = 0.0;
     for ((e, a), b) in err.iter().zip(x).zip(x_new) {
         let sc = tol.atol + tol.rtol * a.abs().max(b.abs());
@@ -230,8 +217,9 @@ pub(crate) fn error_norm(tol: &Tolerances, x: &[f64], x_new: &[f64], err: &[f64]
     (s / err.len().max(1) as f64).sqrt()
 }
 
-/// Checks sizes and the interval shared by both integrators.
-pub(crate) fn check_call(
+/// Checks an `integrate` call: the integrator's dimension `dim` against the system's and
+/// the state's, `t0` and `t1` finite, the state finite.
+pub fn check_call(
     dim: usize,
     sys_dim: usize,
     x: &[f64],

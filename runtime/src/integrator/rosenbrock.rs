@@ -305,20 +305,15 @@ impl Rosenbrock {
                         return Err(IntegratorError::StepTooSmall { t, h: self.h });
                     }
                 }
-                Attempt::StageFailed => {
+                failed @ (Attempt::StageFailed | Attempt::WFailed) => {
                     stats.rejected += 1;
                     self.h = h * 0.25;
                     last_rejected = true;
                     if self.h < tol.h_min {
-                        return Err(IntegratorError::NonFinite { t });
-                    }
-                }
-                Attempt::WFailed => {
-                    stats.rejected += 1;
-                    self.h = h * 0.25;
-                    last_rejected = true;
-                    if self.h < tol.h_min {
-                        return Err(IntegratorError::WFailed { t });
+                        return Err(match failed {
+                            Attempt::WFailed => IntegratorError::WFailed { t },
+                            _ => IntegratorError::NonFinite { t },
+                        });
                     }
                 }
             }

@@ -1,6 +1,8 @@
 //! Goldfarb–Idnani dual active-set solver specialised to the projection
 //! `min ½‖x − x0‖²  s.t.  Nᵢ·x ≥ bᵢ` (identity Hessian, dense rows, no allocation).
 
+use crate::linalg::dot;
+
 /// How the dual active-set iteration ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum DualOutcome {
@@ -159,7 +161,7 @@ impl DualActiveSet {
                     }
                 }
                 // Primal direction: the part of row p orthogonal to the active rows.
-                let d2_sq: f64 = self.d[nq..nv].iter().map(|v| v * v).sum();
+                let d2_sq = dot(&self.d[nq..nv], &self.d[nq..nv]);
                 let t2 = if d2_sq.sqrt() <= tol.dependence {
                     f64::INFINITY
                 } else {
@@ -291,8 +293,4 @@ fn rotate_columns(q: &mut [f64], ld: usize, nv: usize, j: usize, c: f64, s: f64)
         *x = c * xv + s * yv;
         *y = -s * xv + c * yv;
     }
-}
-
-pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }

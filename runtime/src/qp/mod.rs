@@ -14,8 +14,9 @@ mod settings;
 
 pub use settings::{QpSettings, QpSetupError};
 
+use crate::linalg::dot;
 use clarabel_backend::{ClarabelOutcome, ClarabelQp};
-use dual::{DualActiveSet, DualOutcome, DualTolerances, dot};
+use dual::{DualActiveSet, DualOutcome, DualTolerances};
 use polish::RelaxedPolish;
 
 /// Outcome of a solve.
@@ -199,16 +200,7 @@ impl SafetyQp {
         let mut any = false;
         for i in 0..self.m {
             let row = &a[i * n..(i + 1) * n];
-            let amax = row.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
-            let norm = if amax > 0.0 {
-                amax * row
-                    .iter()
-                    .map(|v| (v / amax) * (v / amax))
-                    .sum::<f64>()
-                    .sqrt()
-            } else {
-                0.0
-            };
+            let norm = scaled_norm(row);
             let rhs = b[i] / norm;
             let out = &mut self.rows[i * n..(i + 1) * n];
             if norm.is_normal() && norm.is_finite() && rhs.is_finite() {
@@ -434,4 +426,19 @@ enum FromSolver {
     Fast,
     Hard,
     Polished,
+}
+
+/// Euclidean norm of `v` computed on `v / max|vᵢ|`, so entries far from 1 neither overflow
+/// nor underflow when squared; 0 for a zero vector.
+fn scaled_norm(v: &[f64]) -> f64 {
+    let amax = v.iter().fold(0.0_f64, |acc, x| acc.max(x.abs()));
+    if amax > 0.0 {
+        amax * v
+            .iter()
+            .map(|x| (x / amax) * (x / amax))
+            .sum::<f64>()
+            .sqrt()
+    } else {
+        0.0
+    }
 }

@@ -1,7 +1,8 @@
 //! Exact polish of an approximate relaxed-QP solution: semismooth Newton on
 //! `½‖τ − τ_nom‖² + ½ρ Σ max(0, b̂ᵢ − âᵢ·τ)²`, each step a Householder least squares.
 
-use super::dual::dot;
+use super::scaled_norm;
+use crate::linalg::dot;
 
 /// Newton steps before the polish gives up.
 const MAX_NEWTON: usize = 50;
@@ -134,21 +135,15 @@ impl RelaxedPolish {
         }
         for j in 0..n {
             let col = &self.mat[j * ld + j..j * ld + k];
-            let amax = col.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
-            if amax == 0.0 {
+            let norm = scaled_norm(col);
+            if norm == 0.0 {
                 return false;
             }
-            let norm = amax
-                * col
-                    .iter()
-                    .map(|v| (v / amax) * (v / amax))
-                    .sum::<f64>()
-                    .sqrt();
             let alpha = if col[0] > 0.0 { -norm } else { norm };
             let v = &mut self.v[j..k];
             v.copy_from_slice(col);
             v[0] -= alpha;
-            let vv: f64 = v.iter().map(|x| x * x).sum();
+            let vv = dot(v, v);
             for l in j + 1..n {
                 let target = &mut self.mat[l * ld + j..l * ld + k];
                 let f = 2.0 * dot(v, target) / vv;

@@ -10,6 +10,9 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+use rand::rngs::Xoshiro256PlusPlus;
+use rand::{RngExt, SeedableRng};
+
 use crate::hardware::control_table::{self as table, ServoState};
 use crate::hardware::mapping::TendonMap;
 use crate::plant::Plant;
@@ -75,18 +78,9 @@ struct Request {
     wire: Duration,
 }
 
-/// SplitMix64: the fault draws.
-struct Draws(u64);
-
-impl Draws {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+/// The fault draws: a named generator, so a seed gives the same faults on every platform
+/// and `rand` release.
+type Draws = Xoshiro256PlusPlus;
 
 /// The servos of one robot on one bus, with the bus's timing and the injected faults.
 pub struct Device<'m> {
@@ -139,7 +133,7 @@ impl<'m> Device<'m> {
             start,
             origin,
             heard: vec![None; n],
-            draws: Draws(settings.faults.seed),
+            draws: Draws::seed_from_u64(settings.faults.seed),
             log: EmulatorLog {
                 torque: vec![false; n],
                 ..EmulatorLog::default()
@@ -414,7 +408,7 @@ fn fate_of(id: u8, faults: &Faults, since_start: Duration, draws: &mut Draws) ->
         return ReplyFate::Silent;
     }
     // Draw all three every time so one fault's setting does not shift another's sequence.
-    let (drop, corrupt, delay) = (draws.next(), draws.next(), draws.next());
+    let [drop, corrupt, delay]: [f64; 3] = draws.random();
     if drop < faults.drop {
         ReplyFate::Dropped
     } else if corrupt < faults.corrupt {

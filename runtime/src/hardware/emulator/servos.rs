@@ -466,55 +466,23 @@ impl<'m> Servos<'m> {
             }
             Instruction::SyncRead if broadcast => {
                 if let Some((addr, len, ids)) = parse_sync_read(params) {
-                    for (k, &id) in ids.iter().enumerate() {
-                        if ids[..k].contains(&id) {
-                            continue;
-                        }
-                        for s in self.named(id) {
-                            let (error, data) = self.read(s, Some((addr, len)));
-                            answer(senders[s], Kind::Read, error, data, replies);
-                        }
-                    }
+                    let reads = ids.iter().map(|&id| (id, addr, len));
+                    self.read_each(reads, &senders, replies);
                 }
             }
             Instruction::SyncWrite if broadcast => {
                 if let Some((addr, _, items)) = parse_sync_write(params) {
-                    let mut done = Vec::new();
-                    for (id, data) in items {
-                        if done.contains(&id) {
-                            continue;
-                        }
-                        done.push(id);
-                        for s in self.named(id) {
-                            // No status packet: a refused write is silently not applied.
-                            let _ = self.write(s, addr, data);
-                        }
-                    }
+                    self.write_each(items.map(|(id, data)| (id, addr, data)));
                 }
             }
             Instruction::BulkRead if broadcast => {
                 if let Some(entries) = parse_bulk_read(params) {
-                    for (k, &(id, addr, len)) in entries.iter().enumerate() {
-                        if entries[..k].iter().any(|e| e.0 == id) {
-                            continue;
-                        }
-                        for s in self.named(id) {
-                            let (error, data) = self.read(s, Some((addr, len)));
-                            answer(senders[s], Kind::Read, error, data, replies);
-                        }
-                    }
+                    self.read_each(entries, &senders, replies);
                 }
             }
             Instruction::BulkWrite if broadcast => {
                 if let Some(entries) = parse_bulk_write(params) {
-                    for (k, &(id, addr, data)) in entries.iter().enumerate() {
-                        if entries[..k].iter().any(|e| e.0 == id) {
-                            continue;
-                        }
-                        for s in self.named(id) {
-                            let _ = self.write(s, addr, data);
-                        }
-                    }
+                    self.write_each(entries);
                 }
             }
             // Broadcast reads, unicast sync/bulk instructions, a broadcast factory reset of
@@ -523,6 +491,33 @@ impl<'m> Servos<'m> {
         }
         self.update_forces();
         Ok(())
+    }
+
+    /// The reads `(id, addr, len)` of a sync or bulk read, answered in order by the servos
+    /// named; an ID named again in the same packet is ignored.
+    fn read_each(
+        &self,
+        reads: impl IntoIterator<Item = (u8, u16, u16)>,
+        senders: &[Sender],
+        replies: &mut Vec<Reply>,
+    ) {
+        for (id, addr, len) in first_per_id(reads, |r| r.0) {
+            for s in self.named(id) {
+                let (error, data) = self.read(s, Some((addr, len)));
+                answer(senders[s], Kind::Read, error, data, replies);
+            }
+        }
+    }
+
+    /// The writes `(id, addr, data)` of a sync or bulk write, applied by the servos named;
+    /// an ID named again in the same packet is ignored. No status packet: a refused write
+    /// is silently not applied.
+    fn write_each<'p>(&mut self, writes: impl IntoIterator<Item = (u8, u16, &'p [u8])>) {
+        for (id, addr, data) in first_per_id(writes, |w| w.0) {
+            for s in self.named(id) {
+                let _ = self.write(s, addr, data);
+            }
+        }
     }
 
     /// The bytes a read of `len` at `addr` returns, or the error number.
@@ -712,6 +707,22 @@ impl<'m> Servos<'m> {
         );
         0
     }
+}
+
+/// The entries of a sync or bulk instruction whose ID no earlier entry named: a servo
+/// named twice in one packet takes its first entry only.
+fn first_per_id<T>(
+    entries: impl IntoIterator<Item = T>,
+    id: fn(&T) -> u8,
+) -> impl Iterator<Item = T> {
+    let mut done = Vec::new();
+    entries.into_iter().filter(move |e| {
+        let fresh = !done.contains(&id(e));
+        if fresh {
+            done.push(id(e));
+        }
+        fresh
+    })
 }
 
 /// Bulk Read parameters: `(id, addr, len)` per servo, or `None` unless a whole number of

@@ -1,7 +1,14 @@
-//! Explicit adaptive Dormand–Prince 5(4) integrator (FSAL, PI step control), preallocated.
-//! The non-stiff reference: energy-conservation checks and cross-checks of the stiff method.
+//! The reference integrators the tests compare the runtime's Rosenbrock-W against: explicit
+//! Dormand–Prince 5(4) and a dense finite-difference/LU `W` for any [`OdeSystem`].
 
-use super::{IntegratorError, OdeSystem, Stats, Tolerances, check_call, error_norm};
+use softcbf::integrator::{
+    IntegratorError, OdeSystem, Stats, Tolerances, WSolve, check_call, error_norm,
+};
+use softcbf::linalg::{lu_in_place, lu_solve};
+
+// ---------------------------------------------------------------------------------------
+// Dormand–Prince 5(4): explicit, FSAL, PI step control; the non-stiff reference for energy
+// checks and cross-checks of the stiff method.
 
 // Dormand & Prince (1980), the RK5(4)7M pair; C[i] nodes, A[i][j] coupling, B 5th-order
 // weights (= A[6], FSAL), E = B − B̂ (B̂ the 4th-order weights).
@@ -88,24 +95,6 @@ impl DormandPrince {
             x_new: v(),
             err: v(),
         })
-    }
-
-    /// The tolerances in use.
-    pub fn tolerances(&self) -> &Tolerances {
-        &self.tol
-    }
-
-    /// Replaces the tolerances (validated) and restarts from `h_initial`.
-    pub fn set_tolerances(&mut self, tol: Tolerances) -> Result<(), IntegratorError> {
-        tol.validate()?;
-        self.tol = tol;
-        self.reset();
-        Ok(())
-    }
-
-    /// Step size the next call will try first, in s.
-    pub fn step_size(&self) -> f64 {
-        self.h
     }
 
     /// Forgets the warm-start step size.
@@ -264,6 +253,189 @@ impl DormandPrince {
             }
             self.err[m] = h * e;
         }
+        true
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// A dense W for any system.
+
+/// An analytic Jacobian, for [`DenseW::with_jacobian`].
+pub trait Jacobian: OdeSystem {
+    /// Writes `∂f/∂x` (row-major `dim×dim`) into `jac`; returns `false` on failure.
+    fn jacobian(&mut self, t: f64, x: &[f64], jac: &mut [f64]) -> bool;
+}
+
+/// The analytic Jacobian of a wrapped system, if it has one.
+type JacobianFn<S> = fn(&mut S, f64, &[f64], &mut [f64]) -> bool;
+
+/// Wraps any [`OdeSystem`] into a [`WSolve`] with the full Jacobian: analytic if the system
+/// provides one ([`DenseW::with_jacobian`]), else forward finite differences (`dim` extra
+/// rhs evaluations, step `√(ε·max(10⁻⁵, |x_j|))`); `W` is factored by LU with pivoting.
+/// The Jacobian is reused when `prepare_w` is called again at the same `(t, x)` (after a
+/// rejected step). Unless [`DenseW::autonomous`] is set, `∂f/∂t` is also approximated by a
+/// forward difference (one more evaluation).
+#[derive(Clone, Debug)]
+pub struct DenseW<S> {
+    /// The wrapped system.
+    pub system: S,
+    /// `true`: `f` does not depend on `t`, so `∂f/∂t = 0` is used without evaluation.
+    pub autonomous: bool,
+    analytic: Option<JacobianFn<S>>,
+    n: usize,
+    jac: Vec<f64>,
+    lu: Vec<f64>,
+    piv: Vec<usize>,
+    tmp: Vec<f64>,
+    f_base: Vec<f64>,
+    f_pert: Vec<f64>,
+    x_pert: Vec<f64>,
+    x_jac: Vec<f64>,
+    t_jac: f64,
+    dfdt: Vec<f64>,
+    jac_valid: bool,
+    ready: bool,
+    jac_rhs_evals: usize,
+}
+
+impl<S: OdeSystem> DenseW<S> {
+    /// Wraps `system` (treated as non-autonomous; set [`DenseW::autonomous`] if it is).
+    pub fn new(system: S) -> Self {
+        let n = system.dim();
+        Self {
+            system,
+            autonomous: false,
+            analytic: None,
+            n,
+            jac: vec![0.0; n * n],
+            lu: vec![0.0; n * n],
+            piv: vec![0; n],
+            tmp: vec![0.0; n],
+            f_base: vec![0.0; n],
+            f_pert: vec![0.0; n],
+            x_pert: vec![0.0; n],
+            x_jac: vec![0.0; n],
+            t_jac: f64::NAN,
+            dfdt: vec![0.0; n],
+            jac_valid: false,
+            ready: false,
+            jac_rhs_evals: 0,
+        }
+    }
+
+    /// Wraps `system` with its analytic Jacobian (no finite differences).
+    pub fn with_jacobian(system: S) -> Self
+    where
+        S: Jacobian,
+    {
+        let mut w = Self::new(system);
+        w.analytic = Some(S::jacobian);
+        w
+    }
+
+    /// Right-hand-side evaluations spent on Jacobians and `∂f/∂t` since construction.
+    pub fn jacobian_rhs_evals(&self) -> usize {
+        self.jac_rhs_evals
+    }
+
+    #[allow(clippy::needless_range_loop)] // column j of the Jacobian: index form is clearer
+    fn evaluate_jacobian(&mut self, t: f64, x: &[f64]) -> bool {
+        let n = self.n;
+        let need_base = self.analytic.is_none() || !self.autonomous;
+        if need_base {
+            self.jac_rhs_evals += 1;
+            if !self.system.rhs(t, x, &mut self.f_base) {
+                return false;
+            }
+        }
+        if let Some(jacobian) = self.analytic {
+            if !jacobian(&mut self.system, t, x, &mut self.jac) {
+                return false;
+            }
+        } else {
+            self.x_pert.copy_from_slice(x);
+            for j in 0..n {
+                let xj = x[j];
+                let delta = (f64::EPSILON * xj.abs().max(1e-5)).sqrt();
+                self.x_pert[j] = xj + delta;
+                let dx = self.x_pert[j] - xj;
+                self.jac_rhs_evals += 1;
+                if !self.system.rhs(t, &self.x_pert, &mut self.f_pert) {
+                    return false;
+                }
+                for i in 0..n {
+                    self.jac[i * n + j] = (self.f_pert[i] - self.f_base[i]) / dx;
+                }
+                self.x_pert[j] = xj;
+            }
+        }
+        if self.autonomous {
+            self.dfdt.fill(0.0);
+        } else {
+            let dt = (f64::EPSILON * t.abs().max(1e-5)).sqrt();
+            let tp = t + dt;
+            self.jac_rhs_evals += 1;
+            if !self.system.rhs(tp, x, &mut self.f_pert) {
+                return false;
+            }
+            for i in 0..n {
+                self.dfdt[i] = (self.f_pert[i] - self.f_base[i]) / (tp - t);
+            }
+        }
+        self.jac.iter().all(|v| v.is_finite()) && self.dfdt.iter().all(|v| v.is_finite())
+    }
+}
+
+impl<S: OdeSystem> OdeSystem for DenseW<S> {
+    fn dim(&self) -> usize {
+        self.n
+    }
+
+    fn rhs(&mut self, t: f64, x: &[f64], dx: &mut [f64]) -> bool {
+        self.system.rhs(t, x, dx)
+    }
+}
+
+impl<S: OdeSystem> WSolve for DenseW<S> {
+    fn prepare_w(&mut self, t: f64, x: &[f64], gamma_h: f64) -> bool {
+        self.ready = false;
+        if x.len() != self.n {
+            return false;
+        }
+        let same_point = self.jac_valid && t == self.t_jac && x == self.x_jac.as_slice();
+        if !same_point {
+            self.jac_valid = false;
+            if !self.evaluate_jacobian(t, x) {
+                return false;
+            }
+            self.jac_valid = true;
+            self.t_jac = t;
+            self.x_jac.copy_from_slice(x);
+        }
+        let n = self.n;
+        for i in 0..n * n {
+            self.lu[i] = -gamma_h * self.jac[i];
+        }
+        for i in 0..n {
+            self.lu[i * n + i] += 1.0;
+        }
+        self.ready = lu_in_place(&mut self.lu, n, &mut self.piv);
+        self.ready
+    }
+
+    fn solve_w(&mut self, r: &mut [f64]) -> bool {
+        if !self.ready || r.len() != self.n {
+            return false;
+        }
+        lu_solve(&self.lu, self.n, &self.piv, r, &mut self.tmp);
+        true
+    }
+
+    fn time_derivative(&mut self, dfdt: &mut [f64]) -> bool {
+        if !self.jac_valid || dfdt.len() != self.n {
+            return false;
+        }
+        dfdt.copy_from_slice(&self.dfdt);
         true
     }
 }
