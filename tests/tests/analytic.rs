@@ -1,6 +1,7 @@
 //! The emitted small-θ functions `pcc_fs_fc_6` against the double-double reference: exact
 //! limits at 0, tiny and subnormal u, a dense grid, both sides of every switch, derivatives.
 
+use rand::RngExt;
 use softcbf_codegen::analytic::SWITCH_POINTS;
 use softcbf_tests::analytic::pcc_fs_fc_6;
 use softcbf_tests::highprec::{DD, fs_fc_reference, limits_at_zero};
@@ -46,20 +47,6 @@ fn assert_accurate(points: &[f64]) {
             ratio <= 1.0,
             "u = {u:e}: {name}^({k}) error is {ratio:.3} × the bound"
         );
-    }
-}
-
-/// Deterministic uniform numbers in [0, 1) (SplitMix64).
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 
@@ -142,11 +129,11 @@ fn both_sides_of_every_switch() {
 
 #[test]
 fn random_points() {
-    let mut rng = SplitMix(0x5eed_5cbf);
+    let mut rng = softcbf_tests::rng(0x5eed_5cbf);
     let mut points = Vec::new();
     for _ in 0..1000 {
-        points.push(100.0 * rng.next());
-        points.push(10f64.powf(-20.0 + 22.0 * rng.next()));
+        points.push(100.0 * rng.random::<f64>());
+        points.push(10f64.powf(-20.0 + 22.0 * rng.random::<f64>()));
     }
     assert_accurate(&points);
 }

@@ -1,6 +1,7 @@
 //! Table tests of the symbolic engine: simplification and derivative rules, tangents, and
 //! common-subexpression elimination leaving every output unchanged.
 
+use rand::RngExt;
 use softcbf_codegen::diff::{Differentiator, Tangent};
 use softcbf_codegen::expr::{Arena, Id};
 use softcbf_codegen::program::schedule;
@@ -151,34 +152,19 @@ fn derivatives_match_central_differences() {
     }
 }
 
-/// A deterministic pseudo-random generator (no dependency on the code under test).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> u64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        self.0 >> 33
-    }
-    fn pick(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
-
 #[test]
 fn cse_leaves_every_output_unchanged() {
     // Random expression graphs with much sharing: the straight-line program must give
     // bit-identical outputs to a naive evaluation of each output's tree.
-    let mut rng = Lcg(7);
+    let mut rng = softcbf_tests::rng(7);
     for round in 0..200 {
         let mut arena = Arena::new();
         let mut pool: Vec<Id> = (0..4).map(|k| arena.symbol(&format!("s{k}"))).collect();
         pool.push(arena.constant(0.5));
         for _ in 0..25 {
-            let a = pool[rng.pick(pool.len())];
-            let b = pool[rng.pick(pool.len())];
-            let node = match rng.pick(9) {
+            let a = pool[rng.random_range(0..pool.len())];
+            let b = pool[rng.random_range(0..pool.len())];
+            let node = match rng.random_range(0..9) {
                 0 => arena.add(a, b),
                 1 => arena.sub(a, b),
                 2 => arena.mul(a, b),
