@@ -1,8 +1,9 @@
 //! Small dense factorizations on preallocated row-major slices, for the mass matrix and the
 //! integrators' W matrices: Cholesky for symmetric positive definite, LU with pivoting else.
 
+/// `aᵀ b` over the common length of `a` and `b`: the one dot product of the runtime.
 #[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
