@@ -1,16 +1,20 @@
 //! Criterion benchmarks of the generated model: the paper robot's 12 barriers with Jacobian
-//! rows and `J̇q̇`, and `M`, `h`, `G` together for 1, 2, 4 and 8 modules (issues 2 and 3).
+//! rows and `J̇q̇`, `M`, `h`, `G` together for 1, 2, 4 and 8 modules (issues 2 and 3), and
+//! `model_terms`, everything a control tick needs from the model in one call (issue 10),
+//! for the paper robot and 1, 2, 4 and 8 modules: its time against the sum of
+//! `mass_bias_gravity/2_modules` and `barrier_terms_paper_sim/arrays` of the same run.
 //!
 //! Each iteration evaluates one state of a fixed set of 64 bent, moving states (θ up to
 //! 2 rad, every bend direction), cycled so that no single input is cached. Run with
-//! `cargo bench -p softcbf --bench model`.
+//! `cargo bench -p softcbf --bench model -- --warm-up-time 1 --measurement-time 3`.
 
 use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use softcbf::dynamics::{
-    DynamicsWorkspace, bias_and_gravity, forward_dynamics, mass_matrix, update_joints,
+    BarrierTerms, DynamicsWorkspace, bias_and_gravity, forward_dynamics, mass_matrix, model_terms,
+    update_joints,
 };
 use softcbf::model::Model;
 use softcbf_codegen::robot::Robot;
@@ -146,7 +150,7 @@ fn bench_dynamics(c: &mut Criterion) {
             let (q, qd) = &set[k % STATES];
             k += 1;
             update_joints(&model, &mut ws, black_box(q), black_box(qd));
-            black_box(&ws.transforms);
+            black_box(ws.transforms());
         })
     });
     update_joints(&model, &mut ws, &set[0].0, &set[0].1);
@@ -182,5 +186,89 @@ fn bench_dynamics(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_barriers, bench_dynamics);
+fn bench_model_terms(c: &mut Criterion) {
+    let mut group = c.benchmark_group("model_terms");
+    // The paper robot (2 modules, from its robot file), then 1, 4 and 8 modules.
+    let paper = Model::new(Robot::paper_sim()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(paper.generated.name(), "paper_sim");
+    let models = [
+        ("paper_sim", paper),
+        ("hex_1", model_with(1, "hex_1")),
+        ("hex_4", model_with(4, "hex_4")),
+        ("hex_8", model_with(8, "hex_8")),
+    ];
+    for (name, model) in &models {
+        let set = states(model);
+        let mut ws = DynamicsWorkspace::new(model);
+        let mut barriers = BarrierTerms::new(model);
+        group.bench_function(*name, |bench| {
+            let mut k = 0;
+            bench.iter(|| {
+                let (q, qd) = &set[k % STATES];
+                k += 1;
+                let status =
+                    model_terms(model, &mut ws, &mut barriers, black_box(q), black_box(qd));
+                black_box((
+                    status.is_ok(),
+                    &ws.mass_matrix,
+                    &ws.bias,
+                    &ws.gravity,
+                    &barriers,
+                ));
+            })
+        });
+    }
+    group.finish();
+
+    // The generated part alone (joint and barrier terms at one state).
+    let (_, model) = &models[0];
+    let set = states(model);
+    let (n, nq, nb) = (model.n_modules(), model.nq(), model.nb());
+    let mut rotation = vec![[[0.0; 3]; 3]; n];
+    let mut translation = vec![[0.0; 3]; n];
+    let mut subspace = vec![[[0.0; 3]; 6]; n];
+    let mut bias = vec![[0.0; 6]; n];
+    let (mut b, mut jacobian, mut jdot_qd) = (vec![0.0; nb], vec![0.0; nb * nq], vec![0.0; nb]);
+    let mut group = c.benchmark_group("generated_paper_sim");
+    group.bench_function("model_terms", |bench| {
+        let mut k = 0;
+        bench.iter(|| {
+            let (q, qd) = &set[k % STATES];
+            k += 1;
+            black_box(model.generated).model_terms(
+                &model.params,
+                black_box(q),
+                black_box(qd),
+                &mut rotation,
+                &mut translation,
+                &mut subspace,
+                &mut bias,
+                &mut b,
+                &mut jacobian,
+                &mut jdot_qd,
+            );
+            black_box((&rotation, &b));
+        })
+    });
+    group.bench_function("joint_terms", |bench| {
+        let mut k = 0;
+        bench.iter(|| {
+            let (q, qd) = &set[k % STATES];
+            k += 1;
+            black_box(model.generated).joint_terms(
+                &model.params,
+                black_box(q),
+                black_box(qd),
+                &mut rotation,
+                &mut translation,
+                &mut subspace,
+                &mut bias,
+            );
+            black_box(&rotation);
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_barriers, bench_dynamics, bench_model_terms);
 criterion_main!(benches);

@@ -13,10 +13,9 @@
 //! no clock, touches no port and prints nothing, so simulation and hardware share it.
 
 use crate::dynamics::{
-    DynamicsError, DynamicsWorkspace, factor_mass_matrix, mass_matrix, nonlinear_effects,
-    update_joints,
+    BarrierTerms, DynamicsError, DynamicsWorkspace, factor_mass_matrix, model_terms,
 };
-use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve};
+use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve, dot};
 use crate::model::Model;
 use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
 
@@ -151,8 +150,8 @@ pub enum TickStatus {
     Relaxed,
     /// The QP gave no verified solution: `τ` is the safe command (zero).
     QpFailed,
-    /// The state or reference was not finite, or the dynamics failed: `τ` is the safe
-    /// command (zero).
+    /// The state or reference was not finite, had a wrong length, or the dynamics failed:
+    /// `τ` is the safe command (zero).
     InvalidState(InvalidState),
 }
 
@@ -166,8 +165,19 @@ impl TickStatus {
 /// Why the controller could not evaluate the state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum InvalidState {
-    /// `q`, `q̇` or the reference had a NaN or infinite entry, or a wrong length.
+    /// `q`, `q̇` or the reference had a NaN or infinite entry.
     NonFinite,
+    /// A setup error of the caller, not a state of the robot: `q`, `q̇` or a reference
+    /// vector does not have `nq` entries, or the controller was built for another model.
+    /// Every tick with the same buffers gives it again.
+    Size {
+        /// The argument.
+        what: &'static str,
+        /// Its length for this model.
+        expected: usize,
+        /// Its length as given.
+        got: usize,
+    },
     /// `M(q)` was not positive definite.
     MassMatrix,
     /// The model produced a non-finite barrier, torque or row.
@@ -184,9 +194,7 @@ pub struct Controller {
     nq: usize,
     nb: usize,
     dynamics: DynamicsWorkspace,
-    barriers: Vec<f64>,
-    jacobian: Vec<f64>,
-    jdot_qd: Vec<f64>,
+    barrier_terms: BarrierTerms,
     /// HOCBF rows `A = J M⁻¹`, row-major `nb × nq`, then the input limits; and right-hand
     /// sides.
     rows: Vec<f64>,
@@ -219,9 +227,7 @@ impl Controller {
             nq,
             nb,
             dynamics: DynamicsWorkspace::new(model),
-            barriers: vec![0.0; nb],
-            jacobian: vec![0.0; nb * nq],
-            jdot_qd: vec![0.0; nb],
+            barrier_terms: BarrierTerms::new(model),
             rows: constraint_rows,
             rhs: constraint_rhs,
             drift: vec![0.0; nq],
@@ -278,12 +284,12 @@ impl Controller {
 
     /// Barrier values of the last tick \[m\] (NaN after an invalid state).
     pub fn barriers(&self) -> &[f64] {
-        &self.barriers
+        self.barrier_terms.values()
     }
 
     /// Barrier Jacobian of the last tick, row-major `nb × nq`.
     pub fn barrier_jacobian(&self) -> &[f64] {
-        &self.jacobian
+        self.barrier_terms.jacobian()
     }
 
     /// HOCBF rows `A = J M⁻¹` (row-major, the first `nb` rows; the input limits follow) and
@@ -305,7 +311,7 @@ impl Controller {
     fn fallback(&mut self, why: InvalidState) -> TickStatus {
         self.tau.fill(0.0);
         self.tau_nom.fill(f64::NAN);
-        self.barriers.fill(f64::NAN);
+        self.barrier_terms.invalidate();
         TickStatus::InvalidState(why)
     }
 }
@@ -314,17 +320,53 @@ fn all_finite(x: &[f64]) -> bool {
     x.iter().all(|v| v.is_finite())
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+/// The first argument of a tick whose length differs from the model's.
+#[inline]
+fn size_problem(
+    model: &Model,
+    controller: &Controller,
+    q: &[f64],
+    qd: &[f64],
+    reference: &Reference<'_>,
+) -> Option<InvalidState> {
+    let nq = model.nq();
+    [
+        (
+            "controller (built for another model): nq",
+            controller.nq,
+            nq,
+        ),
+        (
+            "controller (built for another model): nb",
+            controller.nb,
+            model.nb(),
+        ),
+        ("q", q.len(), nq),
+        ("q̇", qd.len(), nq),
+        ("reference q̄", reference.q.len(), nq),
+        ("reference q̄̇", reference.qd.len(), nq),
+        ("reference q̄̈", reference.qdd.len(), nq),
+    ]
+    .into_iter()
+    .find(|(_, got, expected)| got != expected)
+    .map(|(what, got, expected)| InvalidState::Size {
+        what,
+        expected,
+        got,
+    })
 }
 
 /// One control tick at state `(q, q̇)` toward `reference`: evaluates `M`, `h`, `G`, the
-/// barriers with their Jacobians and `J̇ q̇`, the PD+ torque
+/// barriers with their Jacobians and `J̇ q̇` (one [`model_terms`] call), the PD+ torque
 /// `τ_nom = M q̄̈ + h + G + K q̄ + D q̄̇ + K_P (q̄ − q) + K_D (q̄̇ − q̇)` (MODEL.md §5) and,
 /// with the filter on, the HOCBF rows and the QP. The command lands in
-/// [`Controller::tau`]; it is always finite (zero, the unactuated robot, when no computed
-/// command can be trusted, or when the state lies outside the model's domain). Allocates
-/// nothing.
+/// [`Controller::tau`] \[N\]; it is always finite (zero, the unactuated robot, when no
+/// computed command can be trusted, or when the state lies outside the model's domain).
+/// Allocates nothing.
+///
+/// Arguments: `model` is the one `controller` was built for; `q` \[m\] and `q̇` \[m/s\]
+/// have `nq` entries each, and so do the reference's `q̄` \[m\], `q̄̇` \[m/s\] and `q̄̈`
+/// \[m/s²\]. A wrong length is [`InvalidState::Size`] (checked first: a few compares).
 pub fn tick(
     model: &Model,
     controller: &mut Controller,
@@ -332,42 +374,42 @@ pub fn tick(
     qd: &[f64],
     reference: Reference<'_>,
 ) -> TickStatus {
+    if let Some(why) = size_problem(model, controller, q, qd, &reference) {
+        return controller.fallback(why);
+    }
     let nq = controller.nq;
-    let sizes = [
-        q.len(),
-        qd.len(),
-        reference.q.len(),
-        reference.qd.len(),
-        reference.qdd.len(),
-    ];
-    if sizes.iter().any(|&len| len != nq)
-        || !(all_finite(q) && all_finite(qd))
-        || !(all_finite(reference.q) && all_finite(reference.qd) && all_finite(reference.qdd))
-    {
+    let finite = [q, qd, reference.q, reference.qd, reference.qdd];
+    if !finite.into_iter().all(all_finite) {
         return controller.fallback(InvalidState::NonFinite);
     }
     if softcbf_codegen::limits::state_problem(&model.robot, q, qd).is_some() {
         return controller.fallback(InvalidState::OutOfDomain);
     }
 
-    let ws = &mut controller.dynamics;
-    update_joints(model, ws, q, qd);
-    mass_matrix(model, ws);
-    nonlinear_effects(model, ws, qd);
-    if let Err(error) = factor_mass_matrix(ws) {
+    let evaluated = model_terms(
+        model,
+        &mut controller.dynamics,
+        &mut controller.barrier_terms,
+        q,
+        qd,
+    )
+    .and_then(|()| factor_mass_matrix(&mut controller.dynamics));
+    if let Err(error) = evaluated {
         return controller.fallback(match error {
             DynamicsError::NotPositiveDefinite => InvalidState::MassMatrix,
             DynamicsError::NonFinite => InvalidState::NonFiniteModel,
+            DynamicsError::Size {
+                what,
+                expected,
+                got,
+            } => InvalidState::Size {
+                what,
+                expected,
+                got,
+            },
         });
     }
-    model.generated.barrier_terms(
-        &model.params,
-        q,
-        qd,
-        &mut controller.barriers,
-        &mut controller.jacobian,
-        &mut controller.jdot_qd,
-    );
+    let barriers = &controller.barrier_terms;
 
     // τ_nom, and n = h + G + K q + D q̇.
     let settings = &controller.settings;
@@ -390,9 +432,9 @@ pub fn tick(
     }
     if !(all_finite(&controller.tau_nom)
         && all_finite(&controller.drift)
-        && all_finite(&controller.barriers)
-        && all_finite(&controller.jacobian)
-        && all_finite(&controller.jdot_qd))
+        && all_finite(barriers.values())
+        && all_finite(barriers.jacobian())
+        && all_finite(barriers.jdot_qd()))
     {
         return controller.fallback(InvalidState::NonFiniteModel);
     }
@@ -429,7 +471,7 @@ pub fn tick(
         &mut controller.scratch,
     );
     for k in 0..controller.nb {
-        let jacobian_row = &controller.jacobian[k * nq..(k + 1) * nq];
+        let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
         let row = &mut controller.rows[k * nq..(k + 1) * nq];
         row.fill(0.0);
         for (c, &j) in jacobian_row.iter().enumerate() {
@@ -441,9 +483,9 @@ pub fn tick(
             }
         }
         controller.rhs[k] = dot(jacobian_row, &controller.drift)
-            - controller.jdot_qd[k]
+            - barriers.jdot_qd()[k]
             - (p1 + p2) * dot(jacobian_row, qd)
-            - p1 * p2 * controller.barriers[k];
+            - p1 * p2 * barriers.values()[k];
     }
     if !(all_finite(&controller.rows) && all_finite(&controller.rhs)) {
         return controller.fallback(InvalidState::NonFiniteModel);

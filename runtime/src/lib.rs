@@ -1,9 +1,49 @@
-//! softcbf runtime: the generated model put to work.
+//! softcbf runtime: the generated model put to work — the paper's safe controller in
+//! simulation and on the robot's servos.
 //!
-//! [`model::Model`] joins a robot description to its generated functions; [`dynamics`]
-//! computes `M`, `C q̇`, `G` and forward dynamics over [`spatial`] algebra; [`inspect`]
-//! reports a model at one state; [`record`] keeps a run's trajectory (CSV in and out) and
-//! [`plot`] draws it; [`cli`] holds what the `softcbf` command shares.
+//! | module | what it is for |
+//! |---|---|
+//! | [`model`] | [`model::Model`]: a robot description joined to its generated functions, immutable |
+//! | [`spatial`] | spatial (6-D) vectors, compact transforms and rigid-body inertias (nalgebra) |
+//! | [`dynamics`] | `M`, `h = C q̇`, `G` by CRBA and RNEA, [`dynamics::model_terms`] for a tick, forward dynamics |
+//! | [`linalg`] | small dense Cholesky and LU on preallocated slices, the one `dot` |
+//! | [`control`] | PD+, the HOCBF rows and the safety QP as one allocation-free [`control::tick`] |
+//! | [`qp`] | the safety-filter QP: dual active set, clarabel as reference and fallback |
+//! | [`integrator`] | adaptive integrators of the plant between ticks (Rosenbrock-W) |
+//! | [`plant`] | the simulated robot: the dynamics under a held command |
+//! | [`reference`] | what the controller tracks: set points and minimum-jerk waypoints |
+//! | [`scenario`] | scenario files: robot, initial state, reference, gains, period, duration |
+//! | [`sim`] | the closed-loop simulator: ticks on the sampled state, the plant in between |
+//! | [`record`] | a run's trajectory, one row per tick (CSV in and out) |
+//! | [`plot`] | figures of a run like the paper's Fig. 4 (PNG, SVG) |
+//! | [`output`] | what `softcbf simulate` writes and shows: CSVs, summary, figures, progress |
+//! | [`inspect`] | `softcbf model`: every generated and dynamic quantity at one state, as JSON |
+//! | [`protocol`] | Dynamixel Protocol 2.0 codec and bus client |
+//! | [`hardware`] | the servos driven by the same tick (`softcbf run`), and their emulator |
+//! | [`cli`] | what the subcommands share: loading robots, reading vectors and numbers |
+//! | [`exit`] | the command's exit statuses (safe, unsafe, fault, never started) |
+//!
+//! # One control tick
+//!
+//! ```
+//! use softcbf::cli::load_robot;
+//! use softcbf::control::{Controller, ControllerSettings, Reference, TickStatus, tick};
+//! use softcbf::model::Model;
+//!
+//! // The paper's simulated robot (two modules), embedded in the crate.
+//! let model = Model::new(load_robot(None)?)?;
+//! let mut controller = Controller::new(&model, ControllerSettings::paper(&model))?;
+//! let nq = model.nq();
+//! // At rest in the straight configuration, asked to bend the first module by 1 cm.
+//! let (q, qd, zero) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
+//! let mut set_point = vec![0.0; nq];
+//! set_point[0] = 0.01;
+//! let reference = Reference { q: &set_point, qd: &zero, qdd: &zero };
+//! let status = tick(&model, &mut controller, &q, &qd, reference);
+//! assert_eq!(status, TickStatus::Filtered);
+//! assert!(controller.tau().iter().all(|tau| tau.is_finite()));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod cli;
 pub mod control;

@@ -1,7 +1,7 @@
 //! Small dense factorizations on preallocated row-major slices, for the mass matrix and the
 //! integrators' W matrices: Cholesky for symmetric positive definite, LU with pivoting else.
 
-/// Inner product `Σ aᵢ bᵢ` over the shorter of the two slices.
+/// `aᵀ b` over the common length of `a` and `b`: the one dot product of the runtime.
 #[inline]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()

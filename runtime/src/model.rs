@@ -5,6 +5,8 @@ use softcbf_codegen::layout::{pack_params, param_layout};
 use softcbf_codegen::robot::{Robot, Routing};
 use softcbf_generated::GeneratedModel;
 
+use nalgebra::{Matrix3, Vector3};
+
 use crate::spatial::Inertia;
 
 /// Why a robot cannot be simulated or controlled with this build.
@@ -86,11 +88,10 @@ impl Model {
         let mut damping = Vec::new();
         for m in &robot.modules {
             let [ixx, iyy, izz] = m.inertia;
-            let inertia = [[ixx, 0.0, 0.0], [0.0, iyy, 0.0], [0.0, 0.0, izz]];
             inertias.push(Inertia::rigid_body(
                 m.mass,
-                &[0.0, 0.0, m.com_offset],
-                &inertia,
+                &Vector3::new(0.0, 0.0, m.com_offset),
+                &Matrix3::from_diagonal(&Vector3::new(ixx, iyy, izz)),
             ));
             let d2 = m.tendon_radius * m.tendon_radius;
             stiffness.extend([

@@ -320,9 +320,12 @@ fn non_finite_state_gives_the_safe_command() {
         let status = tick(&model, &mut controller, &zero, &q, reference);
         assert_eq!(status, TickStatus::InvalidState(InvalidState::NonFinite));
     }
-    // A wrong length is refused the same way, never a panic.
+    // A wrong length is refused as a size error (not NonFinite), never a panic.
     let status = tick(&model, &mut controller, &zero[..3], &zero, reference);
-    assert_eq!(status, TickStatus::InvalidState(InvalidState::NonFinite));
+    assert!(matches!(
+        status,
+        TickStatus::InvalidState(InvalidState::Size { .. })
+    ));
     // A valid state afterwards is served normally.
     assert_eq!(
         tick(&model, &mut controller, &zero, &zero, reference),
@@ -481,4 +484,98 @@ fn control_tick_and_plant_step_allocate_nothing() {
         "allocations in 399 ticks and steps"
     );
     assert!(active > 0, "no tick exercised an active row");
+}
+
+/// Every argument of a wrong length gives the size error naming it (a setup error, not
+/// `NonFinite`), the safe command, no panic and no allocation; so does a controller built
+/// for another model.
+#[test]
+fn wrong_lengths_give_the_size_error() {
+    let model = paper_model();
+    let nq = model.nq();
+    let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
+    let (zero, long) = (zeros(nq), zeros(nq + 1));
+    let size = |what: &'static str, got: usize| {
+        TickStatus::InvalidState(InvalidState::Size {
+            what,
+            expected: nq,
+            got,
+        })
+    };
+    let good = regulation(&zero, &zero);
+    let before = allocations();
+    let statuses = [
+        tick(&model, &mut controller, &long, &zero, good),
+        tick(&model, &mut controller, &zero, &long[..2], good),
+        tick(
+            &model,
+            &mut controller,
+            &zero,
+            &zero,
+            Reference {
+                q: &long,
+                qd: &zero,
+                qdd: &zero,
+            },
+        ),
+        tick(
+            &model,
+            &mut controller,
+            &zero,
+            &zero,
+            Reference {
+                q: &zero,
+                qd: &[],
+                qdd: &zero,
+            },
+        ),
+        tick(
+            &model,
+            &mut controller,
+            &zero,
+            &zero,
+            Reference {
+                q: &zero,
+                qd: &zero,
+                qdd: &long,
+            },
+        ),
+    ];
+    assert_eq!(allocations(), before, "a refused tick allocates nothing");
+    assert_eq!(
+        statuses,
+        [
+            size("q", nq + 1),
+            size("q̇", 2),
+            size("reference q̄", nq + 1),
+            size("reference q̄̇", 0),
+            size("reference q̄̈", nq + 1),
+        ]
+    );
+    assert!(statuses.iter().all(|s| s.is_fallback()));
+    assert!(controller.tau().iter().all(|&t| t == 0.0));
+
+    // A controller of the one-module robot used with the paper's model.
+    let one = Model::new(
+        softcbf_codegen::robot::Robot::parse(
+            "name = \"one\"\nmodules = 1\n",
+            std::path::Path::new("<test>"),
+        )
+        .expect("one module"),
+    )
+    .expect("one-module model");
+    let mut small = Controller::new(&one, ControllerSettings::paper(&one)).unwrap();
+    let status = tick(&model, &mut small, &zero, &zero, good);
+    assert!(
+        matches!(
+            status,
+            TickStatus::InvalidState(InvalidState::Size { expected, got: 3, .. }) if expected == nq
+        ),
+        "{status:?}"
+    );
+    assert!(small.tau().iter().all(|&t| t == 0.0));
+    assert_eq!(
+        tick(&model, &mut controller, &zero, &zero, good),
+        TickStatus::Filtered
+    );
 }

@@ -3,8 +3,9 @@
 
 use rand::RngExt;
 use softcbf::dynamics::{
-    DynamicsError, DynamicsWorkspace, bias_and_gravity, elastic_energy, forward_dynamics,
-    gravity_energy, kinetic_energy, mass_matrix, nonlinear_effects, update_joints,
+    BarrierTerms, DynamicsError, DynamicsWorkspace, bias_and_gravity, elastic_energy,
+    forward_dynamics, gravity_energy, kinetic_energy, mass_matrix, model_terms, nonlinear_effects,
+    update_joints,
 };
 use softcbf::model::Model;
 use softcbf_codegen::analytic::SWITCH_POINTS;
@@ -623,10 +624,130 @@ fn nonlinear_effects_are_bias_plus_gravity() {
             .map(|(h, g)| h + g)
             .collect();
         ws.nonlinear.fill(f64::NAN);
-        nonlinear_effects(&model, &mut ws, &qd);
+        nonlinear_effects(&model, &mut ws, &qd).expect("sizes of the model");
         let scale = 1.0 + max_abs(&sum);
         for (a, b) in ws.nonlinear.iter().zip(&sum) {
             assert!((a - b).abs() <= 1e-13 * scale, "{a} vs {b}");
         }
     }
+}
+
+/// `model_terms` (one generated evaluation) gives the `M`, `h`, `G` of the separate stages
+/// and the generated barrier terms, exactly: the same kernels on the same joint terms.
+#[test]
+fn model_terms_are_the_stages_and_the_barrier_terms() {
+    for (robot, seed) in [
+        (paper_robot(modules(1, 0.01)), 81),
+        (paper_robot(modules(2, 0.0)), 82),
+        (paper_robot(modules(4, 0.02)), 83),
+    ] {
+        let model = model_of(robot.clone());
+        let (nq, nb) = (model.nq(), model.nb());
+        let mut fused = DynamicsWorkspace::new(&model);
+        let mut staged = DynamicsWorkspace::new(&model);
+        let mut barriers = BarrierTerms::new(&model);
+        let (mut b, mut jacobian, mut jdot_qd) = (vec![0.0; nb], vec![0.0; nb * nq], vec![0.0; nb]);
+        let mut rng = SplitMix(seed);
+        for _ in 0..50 {
+            let (q, qd): (Vec<f64>, Vec<f64>) = match nq {
+                3 => {
+                    let (q, qd) = sample_state::<3>(&mut rng, &robot);
+                    (q.to_vec(), qd.to_vec())
+                }
+                6 => {
+                    let (q, qd) = sample_state::<6>(&mut rng, &robot);
+                    (q.to_vec(), qd.to_vec())
+                }
+                _ => {
+                    let (q, qd) = sample_state::<12>(&mut rng, &robot);
+                    (q.to_vec(), qd.to_vec())
+                }
+            };
+            model_terms(&model, &mut fused, &mut barriers, &q, &qd).expect("sizes of the model");
+            let expected = runtime_terms(&model, &mut staged, &q, &qd);
+            assert_eq!(fused.mass_matrix, expected.mass);
+            assert_eq!(fused.bias, expected.bias);
+            assert_eq!(fused.gravity, expected.gravity);
+            assert_eq!(fused.nonlinear, staged.nonlinear);
+            assert_eq!(
+                kinetic_energy(&model, &fused),
+                kinetic_energy(&model, &staged)
+            );
+            assert_eq!(
+                gravity_energy(&model, &fused),
+                gravity_energy(&model, &staged)
+            );
+            model.generated.barrier_terms(
+                &model.params,
+                &q,
+                &qd,
+                &mut b,
+                &mut jacobian,
+                &mut jdot_qd,
+            );
+            assert_eq!(barriers.values(), b.as_slice());
+            assert_eq!(barriers.jacobian(), jacobian.as_slice());
+            assert_eq!(barriers.jdot_qd(), jdot_qd.as_slice());
+        }
+    }
+}
+
+/// A wrong length is a size error naming the argument, never `NonFinite` or a panic, and
+/// leaves the workspace usable.
+#[test]
+fn wrong_lengths_are_size_errors() {
+    let model = model_of(paper_robot(modules(2, 0.0)));
+    let other = model_of(paper_robot(modules(1, 0.0)));
+    let mut ws = DynamicsWorkspace::new(&model);
+    let mut barriers = BarrierTerms::new(&model);
+    let good = [0.01, -0.02, 0.005, 0.0, 0.03, -0.01];
+    let short = [0.0; 5];
+    let size = |what: &'static str, expected: usize, got: usize| {
+        Err(DynamicsError::Size {
+            what,
+            expected,
+            got,
+        })
+    };
+    assert_eq!(
+        model_terms(&model, &mut ws, &mut barriers, &short, &good),
+        size("q", 6, 5)
+    );
+    assert_eq!(
+        model_terms(&model, &mut ws, &mut barriers, &good, &[0.0; 7]),
+        size("q̇", 6, 7)
+    );
+    let mut qdd = [0.0; 6];
+    assert_eq!(
+        forward_dynamics(&model, &mut ws, &good, &good, &short, &mut qdd),
+        size("τ", 6, 5)
+    );
+    assert_eq!(
+        forward_dynamics(&model, &mut ws, &good, &good, &good, &mut [0.0; 3]),
+        size("q̈", 6, 3)
+    );
+    assert_eq!(
+        forward_dynamics(&model, &mut ws, &short, &good, &good, &mut qdd),
+        size("q", 6, 5)
+    );
+    assert_eq!(nonlinear_effects(&model, &mut ws, &short), size("q̇", 6, 5));
+    // A workspace or barrier storage built for another model.
+    let mut other_ws = DynamicsWorkspace::new(&other);
+    let mut other_barriers = BarrierTerms::new(&other);
+    assert_eq!(
+        model_terms(&model, &mut other_ws, &mut barriers, &good, &good),
+        size("workspace modules", 2, 1)
+    );
+    assert!(matches!(
+        model_terms(&model, &mut ws, &mut other_barriers, &good, &good),
+        Err(DynamicsError::Size { .. })
+    ));
+    // The unchecked-signature stages leave NaN rather than panic.
+    update_joints(&model, &mut ws, &short, &good);
+    assert!(ws.mass_matrix.iter().all(|x| x.is_nan()));
+    assert!(kinetic_energy(&model, &other_ws).is_nan());
+    assert!(elastic_energy(&model, &short).is_nan());
+    // And the right lengths work afterwards.
+    assert!(model_terms(&model, &mut ws, &mut barriers, &good, &good).is_ok());
+    assert!(forward_dynamics(&model, &mut ws, &good, &good, &good, &mut qdd).is_ok());
 }
