@@ -236,33 +236,18 @@ pub fn model_terms(
     Ok(())
 }
 
-/// NaN in every output of the workspace, after a size error of an unchecked stage.
-fn poison(ws: &mut DynamicsWorkspace) {
-    for out in [
-        &mut ws.mass_matrix,
-        &mut ws.bias,
-        &mut ws.gravity,
-        &mut ws.nonlinear,
-    ] {
-        out.fill(f64::NAN);
-    }
-    ws.velocities.fill(Vector6::repeat(f64::NAN));
-    ws.transforms.fill(Transform {
-        rotation: Matrix3::repeat(f64::NAN),
-        translation: Vector3::repeat(f64::NAN),
-    });
-}
-
 /// Evaluates the generated joint terms at `(q, q̇)` (`nq` entries each, \[m\], \[m/s\]), the
 /// parent→child transforms and the composite inertias. Must precede [`mass_matrix`],
 /// [`bias_and_gravity`], [`nonlinear_effects`] and [`gravity_energy`] (which use it; prefer
 /// [`model_terms`], which does all of it at once). A wrong length or a workspace of another
-/// model fills the workspace's outputs with NaN instead.
-pub fn update_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &[f64]) {
-    if check_state(model, ws, q, qd).is_err() {
-        poison(ws);
-        return;
-    }
+/// model is [`DynamicsError::Size`] and nothing is written.
+pub fn update_joints(
+    model: &Model,
+    ws: &mut DynamicsWorkspace,
+    q: &[f64],
+    qd: &[f64],
+) -> Result<(), DynamicsError> {
+    check_state(model, ws, q, qd)?;
     model.generated.joint_terms(
         &model.params,
         q,
@@ -273,6 +258,7 @@ pub fn update_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &
         &mut ws.bias_acceleration,
     );
     prepare_joints(model, ws);
+    Ok(())
 }
 
 /// The generated joint terms as nalgebra values, and the composite inertias tip to base:
@@ -356,13 +342,11 @@ fn crba(ws: &mut DynamicsWorkspace) {
 }
 
 /// `M(q)` by the composite-rigid-body algorithm into `ws.mass_matrix`, from the joint terms
-/// of [`update_joints`]. A workspace of another model fills it with NaN instead.
-pub fn mass_matrix(model: &Model, ws: &mut DynamicsWorkspace) {
-    if check_workspace(model, ws).is_err() {
-        poison(ws);
-        return;
-    }
+/// of [`update_joints`]. A workspace of another model is [`DynamicsError::Size`].
+pub fn mass_matrix(model: &Model, ws: &mut DynamicsWorkspace) -> Result<(), DynamicsError> {
+    check_workspace(model, ws)?;
     crba(ws);
+    Ok(())
 }
 
 /// `G(q)` into `ws.gravity` from the composite inertias: with `q̇ = q̈ = 0` every body only
@@ -441,18 +425,21 @@ fn base_acceleration(model: &Model) -> Vector3<f64> {
 
 /// `h = C(q, q̇) q̇` into `ws.bias` (one RNEA pass), `G(q)` into `ws.gravity` (from the
 /// composite inertias) and their sum into `ws.nonlinear`, after [`update_joints`]. `q̇` has
-/// `nq` entries \[m/s\]; a wrong length or a workspace of another model fills the outputs
-/// with NaN instead.
-pub fn bias_and_gravity(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
-    if check_workspace(model, ws).is_err() || qd.len() != model.nq() {
-        poison(ws);
-        return;
-    }
+/// `nq` entries \[m/s\]; a wrong length or a workspace of another model is
+/// [`DynamicsError::Size`] and nothing is written.
+pub fn bias_and_gravity(
+    model: &Model,
+    ws: &mut DynamicsWorkspace,
+    qd: &[f64],
+) -> Result<(), DynamicsError> {
+    check_workspace(model, ws)?;
+    expect_len("q̇", model.nq(), qd.len())?;
     newton_euler(model, ws, qd, Vector3::zeros(), Output::Bias);
     gravity_from_composites(model, ws);
     for ((sum, h), g) in ws.nonlinear.iter_mut().zip(&ws.bias).zip(&ws.gravity) {
         *sum = h + g;
     }
+    Ok(())
 }
 
 /// `h + G` into `ws.nonlinear` in one RNEA pass, after [`update_joints`] (what forward
@@ -470,25 +457,23 @@ pub fn nonlinear_effects(
 }
 
 /// `½ q̇ᵀ M q̇` \[J\], from the body twists of the last velocity pass ([`model_terms`],
-/// [`bias_and_gravity`] or [`nonlinear_effects`]). NaN for a workspace of another model.
-pub fn kinetic_energy(model: &Model, ws: &DynamicsWorkspace) -> f64 {
-    if check_workspace(model, ws).is_err() {
-        return f64::NAN;
-    }
-    ws.velocities
+/// [`bias_and_gravity`] or [`nonlinear_effects`]); [`DynamicsError::Size`] for a workspace
+/// of another model.
+pub fn kinetic_energy(model: &Model, ws: &DynamicsWorkspace) -> Result<f64, DynamicsError> {
+    check_workspace(model, ws)?;
+    Ok(ws
+        .velocities
         .iter()
         .zip(&model.inertias)
         .map(|(v, inertia)| 0.5 * v.dot(&inertia.apply(v)))
-        .sum()
+        .sum())
 }
 
 /// `U_g = −Σ m_i gᵀ p_i` \[J\] with `p_i` the world position of module `i`'s centre of mass,
-/// from the joint terms of the last [`update_joints`] or [`model_terms`]. NaN for a
-/// workspace of another model.
-pub fn gravity_energy(model: &Model, ws: &DynamicsWorkspace) -> f64 {
-    if check_workspace(model, ws).is_err() {
-        return f64::NAN;
-    }
+/// from the joint terms of the last [`update_joints`] or [`model_terms`];
+/// [`DynamicsError::Size`] for a workspace of another model.
+pub fn gravity_energy(model: &Model, ws: &DynamicsWorkspace) -> Result<f64, DynamicsError> {
+    check_workspace(model, ws)?;
     let g = Vector3::from(model.robot.gravity);
     let mut rotation = Matrix3::identity();
     let mut position = Vector3::zeros();
@@ -499,19 +484,18 @@ pub fn gravity_energy(model: &Model, ws: &DynamicsWorkspace) -> f64 {
         let com = position + rotation.column(2) * module.com_offset;
         energy -= module.mass * g.dot(&com);
     }
-    energy
+    Ok(energy)
 }
 
-/// `U_e = ½ qᵀ K q` \[J\], `q` of `nq` entries \[m\] (NaN for another length).
-pub fn elastic_energy(model: &Model, q: &[f64]) -> f64 {
-    if q.len() != model.stiffness.len() {
-        return f64::NAN;
-    }
-    0.5 * q
-        .iter()
-        .zip(&model.stiffness)
-        .map(|(x, k)| k * x * x)
-        .sum::<f64>()
+/// `U_e = ½ qᵀ K q` \[J\], `q` of `nq` entries \[m\] ([`DynamicsError::Size`] for another
+/// length).
+pub fn elastic_energy(model: &Model, q: &[f64]) -> Result<f64, DynamicsError> {
+    expect_len("q", model.stiffness.len(), q.len())?;
+    Ok(0.5
+        * q.iter()
+            .zip(&model.stiffness)
+            .map(|(x, k)| k * x * x)
+            .sum::<f64>())
 }
 
 /// Cholesky factorization of `ws.mass_matrix` into `ws.cholesky`.
@@ -528,14 +512,14 @@ pub fn factor_mass_matrix(ws: &mut DynamicsWorkspace) -> Result<(), DynamicsErro
 }
 
 /// Solves `M x = b` in place with the factor from [`factor_mass_matrix`]; `b` has `nq`
-/// entries \[N\] and becomes `x` \[m/s²\] (another length: `b` is filled with NaN).
-pub fn solve_mass_matrix(ws: &DynamicsWorkspace, b: &mut [f64]) {
+/// entries \[N\] and becomes `x` \[m/s²\] (another length: [`DynamicsError::Size`], `b`
+/// untouched).
+pub fn solve_mass_matrix(ws: &DynamicsWorkspace, b: &mut [f64]) -> Result<(), DynamicsError> {
     let nq = 3 * ws.n;
-    if b.len() != nq || ws.cholesky.len() != nq * nq {
-        b.fill(f64::NAN);
-        return;
-    }
+    expect_len("right-hand side", nq, b.len())?;
+    expect_len("workspace Cholesky factor", nq * nq, ws.cholesky.len())?;
     cholesky_solve(&ws.cholesky, nq, b);
+    Ok(())
 }
 
 /// Forward dynamics: `q̈ = M⁻¹ (τ − h − G − K q − D q̇)`, allocation-free. `q` \[m\], `q̇`

@@ -4,8 +4,8 @@
 use serde_json::{Value, json};
 
 use crate::dynamics::{
-    DynamicsWorkspace, bias_and_gravity, elastic_energy, gravity_energy, kinetic_energy,
-    mass_matrix, update_joints,
+    BarrierTerms, DynamicsError, DynamicsWorkspace, elastic_energy, gravity_energy, kinetic_energy,
+    model_terms,
 };
 use crate::model::Model;
 
@@ -39,31 +39,19 @@ fn barrier_table(model: &Model) -> Value {
     Value::Array(rows)
 }
 
-/// The model at `(q, q̇)`; `q` and `qd` must have `model.nq()` entries.
-pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Value {
-    let (n, nq, nb) = (model.n_modules(), model.nq(), model.nb());
+/// The model at `(q, q̇)` (`nq` entries each, \[m\], \[m/s\]; another length is
+/// [`DynamicsError::Size`]), from the same single evaluation the control tick makes.
+pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Result<Value, DynamicsError> {
+    let (n, nq) = (model.n_modules(), model.nq());
     let generated = model.generated;
+    let mut ws = DynamicsWorkspace::new(model);
+    let mut terms = BarrierTerms::new(model);
+    model_terms(model, &mut ws, &mut terms, q, qd)?;
     let mut poses = vec![[[0.0; 4]; 4]; n];
     generated.plate_poses(&model.params, q, &mut poses);
-    let mut barriers = vec![0.0; nb];
-    let mut jacobian = vec![0.0; nb * nq];
-    let mut jdot_qd = vec![0.0; nb];
-    generated.barrier_terms(
-        &model.params,
-        q,
-        qd,
-        &mut barriers,
-        &mut jacobian,
-        &mut jdot_qd,
-    );
-
-    let mut ws = DynamicsWorkspace::new(model);
-    update_joints(model, &mut ws, q, qd);
-    mass_matrix(model, &mut ws);
-    bias_and_gravity(model, &mut ws, qd);
     let elastic: Vec<f64> = q.iter().zip(&model.stiffness).map(|(x, k)| k * x).collect();
     let damping: Vec<f64> = qd.iter().zip(&model.damping).map(|(x, d)| d * x).collect();
-    json!({
+    Ok(json!({
         "robot": model.robot.name,
         "generated_model": generated.name(),
         "n": n,
@@ -71,18 +59,18 @@ pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Value {
         "qd": qd,
         "plate_poses": poses,
         "barrier_table": barrier_table(model),
-        "barriers": barriers,
-        "barrier_jacobian": rows(&jacobian, nq),
-        "barrier_jdot_qd": jdot_qd,
+        "barriers": terms.values(),
+        "barrier_jacobian": rows(terms.jacobian(), nq),
+        "barrier_jdot_qd": terms.jdot_qd(),
         "mass_matrix": rows(&ws.mass_matrix, nq),
         "bias": ws.bias,
         "gravity": ws.gravity,
         "elastic": elastic,
         "damping": damping,
         "energy": {
-            "kinetic": kinetic_energy(model, &ws),
-            "gravity": gravity_energy(model, &ws),
-            "elastic": elastic_energy(model, q),
+            "kinetic": kinetic_energy(model, &ws)?,
+            "gravity": gravity_energy(model, &ws)?,
+            "elastic": elastic_energy(model, q)?,
         },
-    })
+    }))
 }

@@ -83,7 +83,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
                 Some(text) => parse_velocities("--qd", &text, &model.robot)?,
                 None => vec![0.0; nq],
             };
-            let report = model_report(&model, &q, &qd);
+            let report = model_report(&model, &q, &qd).map_err(|e| e.to_string())?;
             console.say(&serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
             let mut code = exit::OK;
             let bad = non_finite(&report);

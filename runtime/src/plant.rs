@@ -102,8 +102,11 @@ impl WSolve for PlantSystem<'_> {
         if self.evaluated_at != x {
             let nq = self.model.nq();
             let (q, qd) = x.split_at(nq);
-            update_joints(self.model, &mut self.dynamics, q, qd);
-            mass_matrix(self.model, &mut self.dynamics);
+            let evaluated = update_joints(self.model, &mut self.dynamics, q, qd)
+                .and_then(|()| mass_matrix(self.model, &mut self.dynamics));
+            if evaluated.is_err() {
+                return false;
+            }
         }
         self.w
             .mass_matrix_mut()

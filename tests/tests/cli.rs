@@ -207,7 +207,7 @@ fn model_report_has_every_key_with_reference_values() {
     let model = Model::new(robot.clone()).unwrap_or_else(|e| panic!("{e}"));
     let q: [f64; N] = [0.012, -0.02, 0.01, -0.03, 0.006, -0.012];
     let qd: [f64; N] = [0.05, 0.02, -0.03, -0.04, 0.06, 0.01];
-    let report = model_report(&model, &q, &qd);
+    let report = model_report(&model, &q, &qd).expect("state of the right length");
 
     assert_eq!(report["n"], 2);
     assert_eq!(numbers(&report["q"], "q"), q);

@@ -251,7 +251,7 @@ fn the_ranges_keep_the_model_and_the_tick_finite() {
             let mut controller = Controller::new(&model, settings).expect("valid settings");
             let states = corner_states(&robot, &mut rng, 12);
             for (k, (q, qd)) in states.iter().enumerate() {
-                let report = model_report(&model, q, qd);
+                let report = model_report(&model, q, qd).expect("state of the right length");
                 if let Some(bad) = non_finite(&report, "report") {
                     panic!("{pick:?}: {bad} at q = {q:?}, q̇ = {qd:?}\n{text}");
                 }
@@ -317,7 +317,7 @@ fn relative_pivot(m: &[Vec<f64>]) -> f64 {
 }
 
 fn mass_matrix(model: &Model, q: &[f64]) -> Vec<Vec<f64>> {
-    let report = model_report(model, q, &vec![0.0; q.len()]);
+    let report = model_report(model, q, &vec![0.0; q.len()]).expect("state of the right length");
     let rows = report["mass_matrix"].as_array().expect("mass_matrix rows");
     rows.iter()
         .map(|row| {
@@ -653,7 +653,7 @@ fn check_robot(robot: Robot) -> Result<(), TestCaseError> {
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model))
         .map_err(|e| TestCaseError::fail(e.to_string()))?;
     for q in &states {
-        let report = model_report(&model, q, &vec![0.0; nq]);
+        let report = model_report(&model, q, &vec![0.0; nq]).expect("state of the right length");
         prop_assert!(
             non_finite(&report, "report").is_none(),
             "{:?}",

@@ -44,12 +44,12 @@ impl Plant {
     fn energy(&mut self, x: &[f64]) -> [f64; 3] {
         let nq = self.model.nq();
         let (q, qd) = x.split_at(nq);
-        update_joints(&self.model, &mut self.ws, q, qd);
-        bias_and_gravity(&self.model, &mut self.ws, qd);
+        update_joints(&self.model, &mut self.ws, q, qd).unwrap();
+        bias_and_gravity(&self.model, &mut self.ws, qd).unwrap();
         [
-            kinetic_energy(&self.model, &self.ws),
-            gravity_energy(&self.model, &self.ws),
-            elastic_energy(&self.model, q),
+            kinetic_energy(&self.model, &self.ws).unwrap(),
+            gravity_energy(&self.model, &self.ws).unwrap(),
+            elastic_energy(&self.model, q).unwrap(),
         ]
     }
 }
@@ -72,7 +72,7 @@ impl OdeSystem for Plant {
             for (c, h) in self.correction.iter_mut().zip(&self.ws.bias) {
                 *c = self.bias_error * h;
             }
-            solve_mass_matrix(&self.ws, &mut self.correction);
+            solve_mass_matrix(&self.ws, &mut self.correction).unwrap();
             for (a, c) in qdd.iter_mut().zip(&self.correction) {
                 *a -= c;
             }
