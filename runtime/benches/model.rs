@@ -13,7 +13,7 @@ use softcbf::dynamics::{
     DynamicsWorkspace, bias_and_gravity, forward_dynamics, mass_matrix, update_joints,
 };
 use softcbf::model::Model;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 use softcbf_generated::paper_sim;
 
 /// Number of states cycled through.

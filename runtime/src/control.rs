@@ -174,7 +174,7 @@ pub enum InvalidState {
     NonFiniteModel,
     /// `q` or `q̇` lies outside the model's domain (a bend of more than two turns, an
     /// elongation beyond ten rest lengths, a speed above 100 m/s:
-    /// `softcbf_codegen::limits`), where the model describes no robot.
+    /// `softcbf_description::domain`), where the model describes no robot.
     OutOfDomain,
 }
 
@@ -346,7 +346,7 @@ pub fn tick(
     {
         return controller.fallback(InvalidState::NonFinite);
     }
-    if softcbf_codegen::limits::state_problem(&model.robot, q, qd).is_some() {
+    if softcbf_description::domain::state_problem(&model.robot, q, qd).is_some() {
         return controller.fallback(InvalidState::OutOfDomain);
     }
 

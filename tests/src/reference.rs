@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 use std::path::PathBuf;
 
-use softcbf_codegen::robot::{Module, Robot, Routing};
+use softcbf_description::robot::{Module, Robot, Routing};
 
 /// Below this `u = θ²`, `f_s`, `f_c` come from their power series (30 terms, exact to the
 /// last bit there); above it from `sin θ`, `cos θ`, where the quotients lose < 4 ulp.

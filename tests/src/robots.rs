@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// Path of `robots/<name>` in the checkout.
 pub fn path(name: &str) -> PathBuf {

@@ -12,7 +12,7 @@ use softcbf::dynamics::{
 };
 use softcbf::integrator::{DormandPrince, OdeSystem, Tolerances};
 use softcbf::model::Model;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// The undamped, unactuated plant `x = (q, q̇)`, optionally with `h` scaled by
 /// `1 + bias_error` (the control run that must not conserve energy).

@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// The label `generated/build.rs` gives the paper robot: its path from the workspace root.
 const LABEL: &str = "robots/paper-sim.toml";

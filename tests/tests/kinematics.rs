@@ -2,8 +2,8 @@
 //! `J̇q̇`, joint terms) against the hand-written jets, double-double series and quadrature.
 
 use softcbf_codegen::analytic::SWITCH_POINTS;
-use softcbf_codegen::layout::pack_params;
-use softcbf_codegen::robot::{Module, Robot};
+use softcbf_description::layout::pack_params;
+use softcbf_description::robot::{Module, Robot};
 use softcbf_generated::{hex_4, paper_sim};
 use softcbf_tests::highprec::{DD, fs_fc_reference};
 use softcbf_tests::reference::{

@@ -13,8 +13,10 @@
 //!
 //! Every function writes into caller-provided slices and allocates nothing.
 
-use softcbf_codegen::hardware::{Hardware, ModuleHardware};
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
+use softcbf_description::toml_file::FileError;
+
+use crate::hardware::description::{self, Hardware, ModuleHardware};
 
 /// Why a robot cannot be driven through servos.
 #[derive(Debug, thiserror::Error)]
@@ -27,6 +29,9 @@ pub enum MappingError {
         /// The robot file.
         file: String,
     },
+    /// The `[hardware]` table is not valid.
+    #[error(transparent)]
+    Invalid(#[from] FileError),
 }
 
 /// How many tensions were held at each limit (one tick, or summed).
@@ -86,14 +91,21 @@ fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 }
 
 impl TendonMap {
-    /// The mapping of `robot`, which must have a `[hardware]` table (its validation
-    /// guarantees three tendons per module with a full-rank `A_i`, and local routing).
+    /// The mapping of `robot` through the hardware of its `[hardware]` table
+    /// ([`description::load`]).
     pub fn new(robot: &Robot) -> Result<TendonMap, MappingError> {
-        let Some(hardware) = robot.hardware.clone() else {
-            return Err(MappingError::NoHardware {
+        match description::load(robot)? {
+            Some(hardware) => Ok(TendonMap::with_hardware(robot, hardware)),
+            None => Err(MappingError::NoHardware {
                 file: robot.source.display().to_string(),
-            });
-        };
+            }),
+        }
+    }
+
+    /// The mapping of `robot` through `hardware`, checked against it by
+    /// [`description::load`] (three tendons per module with a full-rank `A_i`, local
+    /// routing), perhaps with settings changed since (`softcbf run`'s options).
+    pub fn with_hardware(robot: &Robot, hardware: Hardware) -> TendonMap {
         let modules = robot
             .modules
             .iter()
@@ -113,7 +125,7 @@ impl TendonMap {
                 }
             })
             .collect();
-        Ok(TendonMap { modules, hardware })
+        TendonMap { modules, hardware }
     }
 
     /// The hardware description.
