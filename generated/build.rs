@@ -10,7 +10,7 @@
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use softcbf_codegen::robot::{Robot, Routing, Structure};
+use softcbf_description::robot::{Robot, Routing, Structure};
 
 fn module_name(path: &Path) -> String {
     let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("robot");

@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use softcbf_codegen::generate;
-use softcbf_codegen::robot::{Routing, Structure};
+use softcbf_description::robot::{Routing, Structure};
 
 fn bench_generate(c: &mut Criterion) {
     let mut group = c.benchmark_group("generate");

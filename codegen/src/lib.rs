@@ -5,8 +5,8 @@
 //! subexpressions, and [`emit`] writing Rust through syn/quote/prettyplease. The analytic
 //! functions `f_s`, `f_c` of MODEL.md §2 and their derivatives are nodes of their own,
 //! evaluated by [`analytic`]'s series-or-closed-form code. [`model`] builds the PCC
-//! kinematics, barriers and joint terms; [`robot`] reads robot files; [`layout`] fixes the
-//! runtime parameter vector.
+//! kinematics, barriers and joint terms of a robot's `Structure`. Robot files and the
+//! parameter layout are `softcbf-description`'s: the generator reads structures only.
 //!
 //! ```
 //! use softcbf_codegen::{expr::Arena, diff::Differentiator};
@@ -22,14 +22,11 @@ pub mod analytic;
 pub mod diff;
 pub mod emit;
 pub mod expr;
-pub mod hardware;
-pub mod layout;
-pub mod limits;
 pub mod model;
 pub mod program;
-pub mod robot;
 pub mod sexpr;
-pub mod toml_file;
 
 pub use model::{GeneratedSource, generate};
-pub use robot::{Robot, RobotError, Structure};
+// The modules of the description that generation reads, under their old paths inside this
+// crate (`crate::robot::Structure`, `crate::layout::param_layout`).
+use softcbf_description::{layout, robot};

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use softcbf_codegen::{Robot, generate};
+use softcbf_codegen::generate;
+use softcbf_description::Robot;
 
 const USAGE: &str = "usage: softcbf-codegen --robot FILE.toml --out FILE.rs";
 

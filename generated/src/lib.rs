@@ -8,7 +8,7 @@
 //! and `SOURCE`, the generated text it was compiled from (`golden/paper_sim.rs` is the
 //! checked-in copy of the paper robot's, compared by the `golden` test of softcbf-tests).
 //! [`find`] picks the model of a structure. Numbers are never compiled in: every function
-//! takes the parameter vector `p` laid out by `softcbf_codegen::layout`.
+//! takes the parameter vector `p` laid out by `softcbf_description::layout`.
 
 /// What a barrier keeps apart.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

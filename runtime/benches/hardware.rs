@@ -11,7 +11,7 @@ use softcbf::hardware::control_table::{self as table, ServoState};
 use softcbf::hardware::mapping::TendonMap;
 use softcbf::model::Model;
 use softcbf::protocol::encode_sync_write;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// `robots/hardware-example.toml`: six servos, IDs 1–6.
 fn example() -> Robot {
@@ -24,8 +24,8 @@ fn example() -> Robot {
 
 fn iteration(c: &mut Criterion) {
     let robot = example();
-    let set_point = robot.hardware.as_ref().unwrap().set_point.clone();
     let map = TendonMap::new(&robot).unwrap();
+    let set_point = map.hardware().set_point.clone();
     let model = Model::new(robot).unwrap();
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
     let n = map.n_servos();

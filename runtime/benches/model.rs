@@ -17,7 +17,7 @@ use softcbf::dynamics::{
     update_joints,
 };
 use softcbf::model::Model;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 use softcbf_generated::paper_sim;
 
 /// Number of states cycled through.

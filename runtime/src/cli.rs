@@ -3,21 +3,26 @@
 
 use std::path::{Path, PathBuf};
 
-use softcbf_codegen::limits::{self, Limit};
-use softcbf_codegen::robot::{Robot, RobotError};
+use softcbf_description::domain;
+use softcbf_description::limits::Limit;
+use softcbf_description::robot::{Robot, RobotError};
 
 /// Text of the default robot, compiled into the binary.
 pub const PAPER_SIM_ROBOT: &str = include_str!("../../robots/paper-sim.toml");
 
-/// Loads `path`, or the embedded paper simulation robot when `None`.
+/// Loads `path`, or the embedded paper simulation robot when `None`. A `[hardware]` table
+/// is checked too ([`crate::hardware::description::load`]), so that a robot file is either
+/// valid as a whole or refused, whichever subcommand reads it.
 pub fn load_robot(path: Option<&Path>) -> Result<Robot, RobotError> {
-    match path {
-        Some(path) => Robot::load(path),
+    let robot = match path {
+        Some(path) => Robot::load(path)?,
         None => Robot::parse(
             PAPER_SIM_ROBOT,
             &PathBuf::from("<embedded robots/paper-sim.toml>"),
-        ),
-    }
+        )?,
+    };
+    crate::hardware::description::load(&robot)?;
+    Ok(robot)
 }
 
 /// Parses `v,v,…` given for option `name`; it must have `expected` finite numbers.
@@ -75,10 +80,10 @@ pub fn parse_integer(name: &str, text: &str, limit: &Limit) -> Result<i64, Strin
 }
 
 /// Parses coordinates `q` of `robot` given for option `name`: `3·modules` finite values in
-/// the model's domain (bend, elongation; [`softcbf_codegen::limits`]).
+/// the model's domain (bend, elongation; [`softcbf_description::domain`]).
 pub fn parse_coordinates(name: &str, text: &str, robot: &Robot) -> Result<Vec<f64>, String> {
     let values = parse_vector(name, text, 3 * robot.modules.len())?;
-    match limits::coordinates_problem(robot, &values) {
+    match domain::coordinates_problem(robot, &values) {
         Some(problem) => Err(format!("{name}: {problem}")),
         None => Ok(values),
     }
@@ -87,7 +92,7 @@ pub fn parse_coordinates(name: &str, text: &str, robot: &Robot) -> Result<Vec<f6
 /// Parses velocities `q̇` of `robot` given for option `name` (speeds within the domain).
 pub fn parse_velocities(name: &str, text: &str, robot: &Robot) -> Result<Vec<f64>, String> {
     let values = parse_vector(name, text, 3 * robot.modules.len())?;
-    match limits::velocities_problem(robot, &values) {
+    match domain::velocities_problem(robot, &values) {
         Some(problem) => Err(format!("{name}: {problem}")),
         None => Ok(values),
     }

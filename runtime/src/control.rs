@@ -184,7 +184,7 @@ pub enum InvalidState {
     NonFiniteModel,
     /// `q` or `q̇` lies outside the model's domain (a bend of more than two turns, an
     /// elongation beyond ten rest lengths, a speed above 100 m/s:
-    /// `softcbf_codegen::limits`), where the model describes no robot.
+    /// `softcbf_description::domain`), where the model describes no robot.
     OutOfDomain,
 }
 
@@ -382,7 +382,7 @@ pub fn tick(
     if !finite.into_iter().all(all_finite) {
         return controller.fallback(InvalidState::NonFinite);
     }
-    if softcbf_codegen::limits::state_problem(&model.robot, q, qd).is_some() {
+    if softcbf_description::domain::state_problem(&model.robot, q, qd).is_some() {
         return controller.fallback(InvalidState::OutOfDomain);
     }
 

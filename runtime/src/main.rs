@@ -14,7 +14,7 @@ use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{barriers_per_module, simulate};
-use softcbf_codegen::limits;
+use softcbf_description::limits;
 
 #[derive(Parser)]
 #[command(

@@ -1,8 +1,8 @@
 //! The runtime model: a validated robot description joined to its generated functions.
 //! Immutable after construction; computations write into workspaces built from it.
 
-use softcbf_codegen::layout::{pack_params, param_layout};
-use softcbf_codegen::robot::{Robot, Routing};
+use softcbf_description::layout::{pack_params, param_layout};
+use softcbf_description::robot::{Robot, Routing};
 use softcbf_generated::GeneratedModel;
 
 use nalgebra::{Matrix3, Vector3};

@@ -12,9 +12,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::{DMatrix, SymmetricEigen};
 use serde::Deserialize;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
-use softcbf_codegen::limits::{self, Limit, short};
-use softcbf_codegen::robot::Robot;
-use softcbf_codegen::toml_file::{Checker, FileError};
+use softcbf_description::domain;
+use softcbf_description::limits::{self, Limit, short};
+use softcbf_description::robot::Robot;
+use softcbf_description::toml_file::{Checker, FileError};
 use toml::Spanned;
 
 use crate::control::ControllerSettings;
@@ -220,7 +221,7 @@ pub const MAX_TICKS: f64 = 1e8;
 impl ScenarioFile {
     /// Reads a scenario file.
     pub fn load(path: &Path) -> Result<ScenarioFile, FileError> {
-        let text = softcbf_codegen::toml_file::read(path, "scenario file")?;
+        let text = softcbf_description::toml_file::read(path, "scenario file")?;
         ScenarioFile::parse(&text, path)
     }
 
@@ -236,7 +237,7 @@ impl ScenarioFile {
     /// Parses scenario text; `path` names it in messages and anchors a relative `robot`.
     pub fn parse(text: &str, path: &Path) -> Result<ScenarioFile, FileError> {
         let checker = Checker { text, path };
-        let raw: RawScenario = toml::from_str(text).map_err(|e| checker.syntax(&e))?;
+        let raw: RawScenario = checker.deserialize()?;
         Ok(ScenarioFile {
             text: text.to_string(),
             path: path.to_path_buf(),
@@ -509,7 +510,7 @@ enum Part {
 use Part::{Coordinates, Velocities};
 
 /// A state vector of `robot` (zeros when not given): one finite entry per coordinate, in
-/// the model's domain (`softcbf_codegen::limits`).
+/// the model's domain (`softcbf_description::domain`).
 fn state(
     c: &Checker<'_>,
     v: Option<&RawVector>,
@@ -524,8 +525,8 @@ fn state(
     sized(c, v, field, nq, "coordinates (3 per module: Δx, Δy, δL)")?;
     let values = c.finite_list(v.get_ref(), field)?;
     let problem = match part {
-        Coordinates => limits::coordinates_problem(robot, &values),
-        Velocities => limits::velocities_problem(robot, &values),
+        Coordinates => domain::coordinates_problem(robot, &values),
+        Velocities => domain::velocities_problem(robot, &values),
     };
     c.state(problem, v, field)?;
     Ok(values)

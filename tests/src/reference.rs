@@ -11,7 +11,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 use std::path::PathBuf;
 
 use rand::RngExt;
-use softcbf_codegen::robot::{Module, Robot, Routing};
+use softcbf_description::robot::{Module, Robot, Routing};
 
 use crate::TestRng;
 

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use softcbf::model::Model;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// Path of `robots/<name>` in the checkout.
 pub fn path(name: &str) -> PathBuf {

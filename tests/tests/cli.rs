@@ -14,9 +14,10 @@ use softcbf::cli::{
     check_number, load_robot, parse_coordinates, parse_integer, parse_number, parse_vector,
     parse_velocities,
 };
+use softcbf::hardware::limits as servo;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
-use softcbf_codegen::limits;
+use softcbf_description::limits;
 use softcbf_tests::reference::{self, Jet};
 
 fn error_of(text: &str, expected: usize) -> String {
@@ -118,11 +119,11 @@ fn coordinates_lie_in_the_state_domain() {
 #[test]
 fn numbers_are_checked_by_the_shared_limits() {
     assert_eq!(
-        parse_number("--timeout-ms", "1e300", &limits::REPLY_TIMEOUT_MS).unwrap_err(),
+        parse_number("--timeout-ms", "1e300", &servo::REPLY_TIMEOUT_MS).unwrap_err(),
         "--timeout-ms: must be > 0 and ≤ 1000 ms, got 1e300"
     );
     assert_eq!(
-        parse_number("--timeout-ms", " 25 ", &limits::REPLY_TIMEOUT_MS),
+        parse_number("--timeout-ms", " 25 ", &servo::REPLY_TIMEOUT_MS),
         Ok(25.0)
     );
     assert_eq!(
@@ -134,19 +135,19 @@ fn numbers_are_checked_by_the_shared_limits() {
         "--rate: must be ≥ 1 and ≤ 10000 Hz, got -33"
     );
     assert_eq!(
-        parse_integer("--retries", "1000", &limits::RETRIES),
+        parse_integer("--retries", "1000", &servo::RETRIES),
         Ok(1000)
     );
     assert_eq!(
-        parse_integer("--retries", "5000", &limits::RETRIES).unwrap_err(),
+        parse_integer("--retries", "5000", &servo::RETRIES).unwrap_err(),
         "--retries: must be an integer in 0..=1000, got 5000"
     );
     assert_eq!(
-        parse_integer("--max-errors", "2.5", &limits::MAX_CONSECUTIVE_ERRORS).unwrap_err(),
+        parse_integer("--max-errors", "2.5", &servo::MAX_CONSECUTIVE_ERRORS).unwrap_err(),
         "--max-errors: `2.5` is not a whole number"
     );
     assert!(
-        parse_integer("--id", "99999999999999999999", &limits::SERVO_ID)
+        parse_integer("--id", "99999999999999999999", &servo::SERVO_ID)
             .unwrap_err()
             .contains("is not a whole number")
     );

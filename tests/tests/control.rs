@@ -557,7 +557,7 @@ fn wrong_lengths_give_the_size_error() {
 
     // A controller of the one-module robot used with the paper's model.
     let one = Model::new(
-        softcbf_codegen::robot::Robot::parse(
+        softcbf_description::robot::Robot::parse(
             "name = \"one\"\nmodules = 1\n",
             std::path::Path::new("<test>"),
         )

@@ -10,13 +10,15 @@ use serde_json::Value;
 use softcbf::control::{
     Controller, ControllerSettings, InvalidState, Reference, TickStatus, scaled_identity, tick,
 };
+use softcbf::hardware::description::{self, Hardware};
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
 use softcbf::reference::{ReferenceSignal, ReferenceSpec};
 use softcbf::scenario::ScenarioFile;
-use softcbf_codegen::limits::{self, Limit};
-use softcbf_codegen::robot::Robot;
-use softcbf_codegen::toml_file::{self, FileError};
+use softcbf_description::domain;
+use softcbf_description::limits::{self, Limit};
+use softcbf_description::robot::Robot;
+use softcbf_description::toml_file::{self, FileError};
 
 // ---------------------------------------------------------------------------------------
 // Helpers.
@@ -185,22 +187,22 @@ fn corner_states(robot: &Robot, rng: &mut Rng, count: usize) -> Vec<(Vec<f64>, V
         let mut q = Vec::new();
         let mut qd = Vec::new();
         for module in &robot.modules {
-            let full = limits::MAX_BEND_RAD * module.tendon_radius * (1.0 - 1e-12);
+            let full = domain::MAX_BEND_RAD * module.tendon_radius * (1.0 - 1e-12);
             let bend = match (k + rng.below(4)) % 4 {
                 0 => [full, 0.0],
                 1 => [-full * FRAC_1_SQRT_2, full * FRAC_1_SQRT_2],
                 2 => [0.0, 0.0],
                 _ => [1e-9 * module.tendon_radius, 0.0],
             };
-            let stretch = limits::MAX_ELONGATION_RATIO * module.rest_length;
+            let stretch = domain::MAX_ELONGATION_RATIO * module.rest_length;
             let elongation = [stretch, -stretch, 0.0][rng.below(3)];
             q.extend([bend[0], bend[1], elongation]);
             for _ in 0..3 {
-                qd.push([limits::MAX_SPEED, -limits::MAX_SPEED, 0.0][rng.below(3)]);
+                qd.push([domain::MAX_SPEED, -domain::MAX_SPEED, 0.0][rng.below(3)]);
             }
         }
         assert!(
-            limits::state_problem(robot, &q, &qd).is_none(),
+            domain::state_problem(robot, &q, &qd).is_none(),
             "{q:?} {qd:?}"
         );
         states.push((q, qd));
@@ -344,12 +346,12 @@ fn the_largest_bend_stays_clear_of_the_full_turn_singularity() {
         full_turn < 1e-25,
         "M at a full turn: relative pivot {full_turn:e}"
     );
-    let at_bound = bent(limits::MAX_BEND_RAD);
+    let at_bound = bent(domain::MAX_BEND_RAD);
     assert!(
         at_bound > 1e-3,
         "M at the largest bend: relative pivot {at_bound:e}"
     );
-    assert!(bent(0.5 * limits::MAX_BEND_RAD) > at_bound);
+    assert!(bent(0.5 * domain::MAX_BEND_RAD) > at_bound);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -363,8 +365,8 @@ fn the_largest_bend_stays_clear_of_the_full_turn_singularity() {
 fn the_shortest_blend_between_far_corners_stays_finite() {
     let model = paper_model();
     let d = model.robot.modules[0].tendon_radius;
-    let bend = limits::MAX_BEND_RAD * d * (1.0 - 1e-12);
-    let stretch = limits::MAX_ELONGATION_RATIO * model.robot.modules[0].rest_length;
+    let bend = domain::MAX_BEND_RAD * d * (1.0 - 1e-12);
+    let stretch = domain::MAX_ELONGATION_RATIO * model.robot.modules[0].rest_length;
     let a = [bend, 0.0, stretch, 0.0, -bend, -stretch];
     let b = [-bend, 0.0, -stretch, 0.0, bend, stretch];
     let list = |q: &[f64]| {
@@ -641,13 +643,13 @@ fn check_error(error: &FileError, path: &Path, text: Option<&str>) -> Result<(),
 
 /// An accepted robot gives a finite model at rest, straight and at its set point, and a
 /// computed command.
-fn check_robot(robot: Robot) -> Result<(), TestCaseError> {
+fn check_robot(robot: Robot, hardware: Option<Hardware>) -> Result<(), TestCaseError> {
     let Ok(model) = Model::new(robot) else {
         return Ok(()); // a structure this build has no model for: refused elsewhere
     };
     let nq = model.nq();
     let mut states = vec![vec![0.0; nq]];
-    if let Some(hardware) = &model.robot.hardware {
+    if let Some(hardware) = &hardware {
         states.push(hardware.set_point.clone());
     }
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model))
@@ -725,9 +727,11 @@ proptest! {
         let bytes = apply(original, &mutations);
         match toml_file::decode(bytes, path) {
             Err(error) => check_error(&error, path, None)?,
-            Ok(text) => match Robot::parse(&text, path) {
+            Ok(text) => match Robot::parse(&text, path)
+                .and_then(|robot| Ok((description::load(&robot)?, robot)))
+            {
                 Err(error) => check_error(&error, path, Some(&text))?,
-                Ok(robot) => check_robot(robot)?,
+                Ok((hardware, robot)) => check_robot(robot, hardware)?,
             },
         }
     }
@@ -752,7 +756,7 @@ proptest! {
             Ok(scenario) => scenario,
         };
         prop_assert!(scenario.duration >= scenario.control_period);
-        prop_assert!(limits::state_problem(&model.robot, &scenario.initial_q, &scenario.initial_qd).is_none());
+        prop_assert!(domain::state_problem(&model.robot, &scenario.initial_q, &scenario.initial_qd).is_none());
         let mut signal = ReferenceSignal::new(scenario.reference.clone());
         let mut controller = Controller::new(model, scenario.controller.clone())
             .map_err(|e| TestCaseError::fail(e.to_string()))?;

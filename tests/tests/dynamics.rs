@@ -9,7 +9,7 @@ use softcbf::dynamics::{
 };
 use softcbf::model::Model;
 use softcbf_codegen::analytic::SWITCH_POINTS;
-use softcbf_codegen::robot::{Module, Robot};
+use softcbf_description::robot::{Module, Robot};
 use softcbf_tests::TestRng;
 use softcbf_tests::reference::{
     self, dynamics, paper_module, paper_robot, sample_module, sample_theta, stiffness_and_damping,

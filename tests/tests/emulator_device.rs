@@ -24,7 +24,7 @@ use softcbf::plant::Plant;
 use softcbf::protocol::{
     BROADCAST_ID, Decoder, Instruction, PacketBuf, crc16, encode_ping, encode_read, encode_write,
 };
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 // Error numbers of a status packet (e-Manual, Protocol 2.0, "Status Packet", Error).
 const INSTRUCTION_ERROR: u8 = 0x02;

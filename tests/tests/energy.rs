@@ -12,7 +12,7 @@ use softcbf::dynamics::{
 };
 use softcbf::integrator::{OdeSystem, Tolerances};
 use softcbf::model::Model;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 use softcbf_tests::integrators::DormandPrince;
 
 /// The undamped, unactuated plant `x = (q, q̇)`, optionally with `h` scaled by

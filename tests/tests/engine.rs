@@ -205,7 +205,7 @@ fn cse_leaves_every_output_unchanged() {
 
 #[test]
 fn cse_leaves_the_model_outputs_unchanged() {
-    use softcbf_codegen::robot::{Routing, Structure};
+    use softcbf_description::robot::{Routing, Structure};
     let structure = Structure {
         corners: vec![6, 4],
         tendons: vec![3, 3],

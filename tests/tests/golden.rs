@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// The label `generated/build.rs` gives the paper robot: its path from the workspace root.
 const LABEL: &str = "robots/paper-sim.toml";
@@ -118,7 +118,7 @@ fn model_terms_is_joint_terms_and_barrier_terms() {
     let model = &softcbf_generated::paper_sim::Model;
     let robot =
         Robot::load(&workspace_root().join(LABEL)).unwrap_or_else(|error| panic!("{error}"));
-    let p = softcbf_codegen::layout::pack_params(&robot);
+    let p = softcbf_description::layout::pack_params(&robot);
     let (n, nq, nb) = (model.n_modules(), model.nq(), model.nb());
     let states: [[f64; 6]; 3] = [
         [0.0; 6],

@@ -12,6 +12,7 @@ use std::thread;
 use std::time::Duration;
 
 use serialport::{SerialPort, TTYPort};
+use softcbf::hardware::description::{self, Hardware, VelocitySource};
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, Faults};
 use softcbf::hardware::log::{CsvLog, FIXED_EXTRA};
 use softcbf::hardware::mapping::TendonMap;
@@ -19,7 +20,7 @@ use softcbf::hardware::run_loop::{self, Row, RunLog, RunSettings, RunSummary, St
 use softcbf::model::Model;
 use softcbf::protocol::Bus;
 use softcbf::record::Record;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 fn example() -> Robot {
     softcbf_tests::robots::hardware_example()
@@ -81,6 +82,18 @@ fn run_against_emulator(faults: Faults, duration: f64) -> Outcome {
 /// Runs the emulator of `robot` in a thread and the loop on the other end of a pty; with
 /// `out`, also writes the log and figures there as `softcbf run` does.
 fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> Outcome {
+    let hardware = description::load(&robot).unwrap().unwrap();
+    run_with_hardware(robot, hardware, faults, duration, out)
+}
+
+/// [`run_with`], the loop driving the servos through `hardware` (the robot file's, changed).
+fn run_with_hardware(
+    robot: Robot,
+    hardware: Hardware,
+    faults: Faults,
+    duration: f64,
+    out: Option<&Path>,
+) -> Outcome {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal");
     master.set_timeout(Duration::from_millis(20)).unwrap();
@@ -109,7 +122,6 @@ fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> 
         .timeout(Duration::from_millis(1))
         .open_native()
         .unwrap();
-    let hardware = robot.hardware.clone().unwrap();
     // An unoptimized emulator can take longer than the file's 10 ms to step its plant.
     let timeout = if cfg!(debug_assertions) {
         0.1
@@ -117,7 +129,7 @@ fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> 
         hardware.reply_timeout
     };
     let mut bus = Bus::new(port, Duration::from_secs_f64(timeout));
-    let map = TendonMap::new(&robot).unwrap();
+    let map = TendonMap::with_hardware(&robot, hardware.clone()).unwrap();
     let model = Model::new(robot).unwrap();
     let mut settings = RunSettings::new(33.0, hardware.set_point.clone());
     settings.duration = Some(duration);
@@ -322,14 +334,14 @@ fn a_silent_servo_triggers_the_safe_stop_with_torque_off() {
 
 #[test]
 fn velocity_from_filtered_differences_also_holds_the_barriers() {
-    let mut robot = example();
-    let hardware = robot.hardware.as_mut().unwrap();
-    hardware.velocity_source = softcbf_codegen::hardware::VelocitySource::Difference;
+    let robot = example();
+    let mut hardware = description::load(&robot).unwrap().unwrap();
+    hardware.velocity_source = VelocitySource::Difference;
     // The hold correction leans on q̇ over the whole tick; the filtered difference lags
     // by about a tick, and with it the corrected rows did worse (−9.6 mm) than the paper's
     // (−0.4 mm) here, as robots/README.md says.
     hardware.hold_correction = false;
-    let out = run_with(robot, Faults::default(), 3.0, None);
+    let out = run_with_hardware(robot, hardware, Faults::default(), 3.0, None);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);
     let min = min_barrier(&out.log);

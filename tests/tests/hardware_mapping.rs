@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 
 use rand::RngExt;
 use softcbf::hardware::mapping::{Clamps, TendonMap};
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 fn example() -> (Robot, TendonMap) {
     let robot = softcbf_tests::robots::hardware_example();
@@ -157,14 +157,14 @@ fn a_robot_without_hardware_is_refused() {
 /// hand-written closed form lie in `[f_min, f_max]`.
 #[test]
 fn tension_limit_rows_are_the_tension_limits() {
-    let (robot, map) = example();
+    let (_, map) = example();
     let (rows, rhs) = map.tension_limit_rows();
     let nq = 6;
     assert_eq!((rows.len(), rhs.len()), (2 * nq * nq, 2 * nq));
     let mut rng = softcbf_tests::rng(8);
     for _ in 0..500 {
         let tau: Vec<f64> = (0..nq).map(|_| rng.random_range(-20.0..20.0)).collect();
-        for (i, hw) in robot.hardware.as_ref().unwrap().modules.iter().enumerate() {
+        for (i, hw) in map.hardware().modules.iter().enumerate() {
             let [f_min, f_max] = hw.tension_limits;
             let f = tensions_by_hand([tau[3 * i], tau[3 * i + 1], tau[3 * i + 2]]);
             for (k, f_k) in f.iter().enumerate() {

@@ -3,8 +3,8 @@
 
 use rand::RngExt;
 use softcbf_codegen::analytic::SWITCH_POINTS;
-use softcbf_codegen::layout::pack_params;
-use softcbf_codegen::robot::{Module, Robot};
+use softcbf_description::layout::pack_params;
+use softcbf_description::robot::{Module, Robot};
 use softcbf_generated::{hex_4, paper_sim};
 use softcbf_tests::TestRng;
 use softcbf_tests::highprec::{DD, fs_fc_reference};

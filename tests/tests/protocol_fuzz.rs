@@ -17,7 +17,7 @@ use softcbf::protocol::{
     BROADCAST_ID, Decoder, Instruction, MAX_SERVO_ID, PacketBuf, encode_instruction, encode_ping,
     encode_read, encode_status,
 };
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 /// Model number of the example robot's servos (XM430-W350), little-endian.
 const MODEL_1020: [u8; 2] = [0xFC, 0x03];

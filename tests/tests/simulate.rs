@@ -172,7 +172,7 @@ fn malformed_scenarios_name_file_line_and_field() {
         ),
         (
             format!("gain = 3\n{reference}"),
-            "scenarios/bad.toml:1:1: unknown field `gain` at top level",
+            "scenarios/bad.toml:1:1: field `gain`: unknown field `gain`, expected one of `name`",
         ),
         (
             "duration = 1.0\n".to_string(),

@@ -1,17 +1,19 @@
 //! The `softcbf emulate` and `softcbf run` subcommands: options (each checked by the same
-//! rule as the robot file's field, `softcbf_codegen::limits`), ports, the summary and the
+//! rule as the robot file's field, [`super::limits`]), ports, the summary and the
 //! exit status. The work itself is in [`super::emulator`] and [`super::run_loop`].
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clap::Args;
-use softcbf_codegen::limits;
-use softcbf_codegen::robot::Robot;
+use softcbf_description::limits;
+use softcbf_description::robot::Robot;
 
 use crate::cli::{check_number, parse_coordinates};
 use crate::exit;
+use crate::hardware::description::{self, Hardware};
 use crate::hardware::emulator::{self, EmulatorSettings, Faults};
+use crate::hardware::limits as servo;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::{self, RunSettings, RunSummary, StopReason, Verdict};
 use crate::hardware::signal;
@@ -105,44 +107,41 @@ pub struct RunArgs {
     pub max_errors: Option<i64>,
 }
 
-fn load(path: &Path) -> Result<Robot, String> {
+/// A robot file and its hardware, read and checked.
+fn load(path: &Path) -> Result<(Robot, Hardware), String> {
     let robot = Robot::load(path).map_err(|e| e.to_string())?;
-    if robot.hardware.is_none() {
-        return Err(format!(
+    match description::load(&robot) {
+        Ok(Some(hardware)) => Ok((robot, hardware)),
+        Ok(None) => Err(format!(
             "{}: no [hardware] table (see robots/README.md)",
             path.display()
-        ));
+        )),
+        Err(error) => Err(error.to_string()),
     }
-    Ok(robot)
 }
 
 /// The emulator's settings from its options, each checked against its range.
-pub fn emulator_settings(args: &EmulateArgs, robot: &Robot) -> Result<EmulatorSettings, String> {
-    let file_baud = robot
-        .hardware
-        .as_ref()
-        .map_or(limits::SUPPORTED_BAUDS[3], |h| h.baud);
+pub fn emulator_settings(
+    args: &EmulateArgs,
+    hardware: &Hardware,
+) -> Result<EmulatorSettings, String> {
     let baud = match args.baud {
-        Some(b) => limits::check_baud(b).map_err(|m| format!("--baud: {m}"))?,
-        None => file_baud,
+        Some(b) => servo::check_baud(b).map_err(|m| format!("--baud: {m}"))?,
+        None => hardware.baud,
     };
     let return_delay = check_number(
         "--return-delay-us",
         args.return_delay_us,
-        &limits::RETURN_DELAY_US,
+        &servo::RETURN_DELAY_US,
     )?;
-    let delay = check_number("--delay-ms", args.delay_ms, &limits::DELAY_MS)?;
-    let silent_after = check_number("--silent-after", args.silent_after, &limits::SILENT_AFTER_S)?;
+    let delay = check_number("--delay-ms", args.delay_ms, &servo::DELAY_MS)?;
+    let silent_after = check_number("--silent-after", args.silent_after, &servo::SILENT_AFTER_S)?;
     let silent_servo = match args.silent_servo {
         Some(id) => {
-            let id = limits::SERVO_ID
+            let id = servo::SERVO_ID
                 .check_integer(id)
                 .map_err(|m| format!("--silent-servo: {m}"))?;
-            let ids = robot
-                .hardware
-                .as_ref()
-                .map(|h| h.servo_ids())
-                .unwrap_or_default();
+            let ids = hardware.servo_ids();
             if !ids.iter().any(|&s| i64::from(s) == id) {
                 return Err(format!(
                     "--silent-servo: the robot has no servo {id} (its servos: {ids:?})"
@@ -155,10 +154,10 @@ pub fn emulator_settings(args: &EmulateArgs, robot: &Robot) -> Result<EmulatorSe
     let mut settings = EmulatorSettings::new(baud);
     settings.return_delay = Duration::from_secs_f64(return_delay * 1e-6);
     settings.faults = Faults {
-        drop: check_number("--drop", args.drop, &limits::FRACTION)?,
-        corrupt: check_number("--corrupt", args.corrupt, &limits::FRACTION)?,
+        drop: check_number("--drop", args.drop, &servo::FRACTION)?,
+        corrupt: check_number("--corrupt", args.corrupt, &servo::FRACTION)?,
         delay: Duration::from_secs_f64(delay / 1000.0),
-        delay_fraction: check_number("--delay-fraction", args.delay_fraction, &limits::FRACTION)?,
+        delay_fraction: check_number("--delay-fraction", args.delay_fraction, &servo::FRACTION)?,
         silent_servo,
         silent_after: Duration::from_secs_f64(silent_after),
         seed: args.seed,
@@ -171,19 +170,16 @@ pub fn emulator_settings(args: &EmulateArgs, robot: &Robot) -> Result<EmulatorSe
 pub fn emulate(args: EmulateArgs, console: &mut Console) -> Result<u8, String> {
     use serialport::{SerialPort, TTYPort};
     let stop = signal::stop_flag();
-    let robot = load(&args.robot)?;
-    let settings = emulator_settings(&args, &robot)?;
+    let (robot, hardware) = load(&args.robot)?;
+    let settings = emulator_settings(&args, &hardware)?;
     let (mut master, slave) =
         TTYPort::pair().map_err(|e| format!("cannot open a pseudo-terminal: {e}"))?;
     master
         .set_timeout(Duration::from_millis(20))
         .map_err(|e| e.to_string())?;
     let path = slave.name().unwrap_or_default();
-    let ids: Vec<String> = robot
-        .hardware
-        .as_ref()
-        .map(|h| h.servo_ids())
-        .unwrap_or_default()
+    let ids: Vec<String> = hardware
+        .servo_ids()
         .iter()
         .map(|id| id.to_string())
         .collect();
@@ -221,16 +217,17 @@ pub fn emulate(_args: EmulateArgs, _console: &mut Console) -> Result<u8, String>
 }
 
 /// The run's settings from its options and the robot file, each checked against its range.
-/// `robot.hardware` receives the command line's overrides.
-pub fn run_settings(args: &RunArgs, robot: &mut Robot) -> Result<(RunSettings, f64), String> {
-    let Some(hardware) = robot.hardware.as_mut() else {
-        return Err("the robot file has no [hardware] table".into());
-    };
+/// `hardware` receives the command line's overrides.
+pub fn run_settings(
+    args: &RunArgs,
+    robot: &Robot,
+    hardware: &mut Hardware,
+) -> Result<(RunSettings, f64), String> {
     if let Some(baud) = args.baud {
-        hardware.baud = limits::check_baud(baud).map_err(|m| format!("--baud: {m}"))?;
+        hardware.baud = servo::check_baud(baud).map_err(|m| format!("--baud: {m}"))?;
     }
     if let Some(n) = args.max_errors {
-        hardware.max_consecutive_errors = limits::MAX_CONSECUTIVE_ERRORS
+        hardware.max_consecutive_errors = servo::MAX_CONSECUTIVE_ERRORS
             .check_integer(n)
             .map_err(|m| format!("--max-errors: {m}"))?
             as u32;
@@ -251,7 +248,7 @@ pub fn run_settings(args: &RunArgs, robot: &mut Robot) -> Result<(RunSettings, f
     }
     if let Some(ms) = args.bus_watchdog_ms {
         settings.bus_watchdog =
-            check_number("--bus-watchdog-ms", ms, &limits::BUS_WATCHDOG_MS)? / 1000.0;
+            check_number("--bus-watchdog-ms", ms, &servo::BUS_WATCHDOG_MS)? / 1000.0;
     }
     settings.filter = !args.no_filter;
     settings.predict = !args.no_prediction;
@@ -281,10 +278,9 @@ pub fn output_directory(dir: &Path, option: &str) -> Result<(), String> {
 pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     // First, so that a signal at any later moment ends in the safe stop.
     let stop = signal::stop_flag();
-    let mut robot = load(&args.robot)?;
-    let (settings, threshold) = run_settings(&args, &mut robot)?;
-    let hardware = robot.hardware.clone().ok_or("no [hardware] table")?;
-    let map = TendonMap::new(&robot).map_err(|e| e.to_string())?;
+    let (robot, mut hardware) = load(&args.robot)?;
+    let (settings, threshold) = run_settings(&args, &robot, &mut hardware)?;
+    let map = TendonMap::with_hardware(&robot, hardware.clone()).map_err(|e| e.to_string())?;
     let model = Model::new(robot.clone()).map_err(|e| e.to_string())?;
     output_directory(&args.out, "--out")?;
     let port = serialport::new(&args.port, hardware.baud)

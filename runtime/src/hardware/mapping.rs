@@ -14,8 +14,10 @@
 //! Every function writes into caller-provided slices and allocates nothing.
 
 use nalgebra::{Matrix3, Vector3};
-use softcbf_codegen::hardware::{Hardware, ModuleHardware};
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
+use softcbf_description::toml_file::FileError;
+
+use crate::hardware::description::{self, Hardware, ModuleHardware};
 
 /// Why a robot cannot be driven through servos.
 #[derive(Debug, thiserror::Error)]
@@ -36,6 +38,9 @@ pub enum MappingError {
         /// The module (from 0).
         module: usize,
     },
+    /// The `[hardware]` table is not valid.
+    #[error(transparent)]
+    Invalid(#[from] FileError),
 }
 
 /// How many tensions were held at each limit (one tick, or summed).
@@ -84,14 +89,21 @@ fn part(v: &[f64], i: usize) -> Vector3<f64> {
 }
 
 impl TendonMap {
-    /// The mapping of `robot`, which must have a `[hardware]` table (its validation
-    /// guarantees three tendons per module with a full-rank `A_i`, and local routing).
+    /// The mapping of `robot` through the hardware of its `[hardware]` table
+    /// ([`description::load`]).
     pub fn new(robot: &Robot) -> Result<TendonMap, MappingError> {
-        let Some(hardware) = robot.hardware.clone() else {
-            return Err(MappingError::NoHardware {
+        match description::load(robot)? {
+            Some(hardware) => TendonMap::with_hardware(robot, hardware),
+            None => Err(MappingError::NoHardware {
                 file: robot.source.display().to_string(),
-            });
-        };
+            }),
+        }
+    }
+
+    /// The mapping of `robot` through `hardware`, checked against it by
+    /// [`description::load`] (three tendons per module with a full-rank `A_i`, local
+    /// routing), perhaps with settings changed since (`softcbf run`'s options).
+    pub fn with_hardware(robot: &Robot, hardware: Hardware) -> Result<TendonMap, MappingError> {
         let modules = robot
             .modules
             .iter()
@@ -117,7 +129,7 @@ impl TendonMap {
                     hardware: hw.clone(),
                 })
             })
-            .collect::<Result<_, _>>()?;
+            .collect::<Result<_, MappingError>>()?;
         Ok(TendonMap { modules, hardware })
     }
 

@@ -1,6 +1,8 @@
 //! The hardware path: the robot's Dynamixel servos over Protocol 2.0, driven by the same
 //! controller as the simulation, and an emulator of those servos for work without a robot.
 //!
+//! - [`description`]: the robot file's `[hardware]` table, read and checked ([`description::load`]);
+//!   [`limits`]: the range of every servo and bus setting.
 //! - [`control_table`]: the X-series registers used.
 //! - [`mapping`]: servo angles → `q`, `q̇`; `τ` → tensions → currents, and back.
 //! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
@@ -11,7 +13,9 @@
 
 pub mod cli;
 pub mod control_table;
+pub mod description;
 pub mod emulator;
+pub mod limits;
 pub mod log;
 pub mod mapping;
 pub mod run_loop;

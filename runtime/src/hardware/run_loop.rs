@@ -28,8 +28,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use softcbf_codegen::hardware::VelocitySource;
-use softcbf_codegen::limits;
+use crate::hardware::description::VelocitySource;
+use softcbf_description::domain;
 
 use crate::control::{
     self, Controller, ControllerError, ControllerSettings, Reference, TickStatus,
@@ -278,7 +278,7 @@ fn safe_start<P: ServoPort>(
         .map_err(StartError::State)?;
     let read_done = Instant::now();
     measure(map, io, ws, VelocitySource::Servo, 0.0, 0.0);
-    if let Some(problem) = limits::state_problem(&model.robot, &ws.q, &ws.qd) {
+    if let Some(problem) = domain::state_problem(&model.robot, &ws.q, &ws.qd) {
         return Err(StartError::OutOfDomain {
             problem: problem.to_string(),
             q: ws.q.clone(),
@@ -543,7 +543,7 @@ fn predict(model: &Model, ws: &mut Workspace<'_>, age: f64) -> bool {
         return false;
     }
     // Nothing to predict, or a state the controller will refuse anyway.
-    if age <= 0.0 || limits::state_problem(&model.robot, &ws.q, &ws.qd).is_some() {
+    if age <= 0.0 || domain::state_problem(&model.robot, &ws.q, &ws.qd).is_some() {
         return true;
     }
     ws.predictor.reset(&ws.q, &ws.qd, 0.0);

@@ -1,7 +1,9 @@
 //! What one `softcbf run` does: its rate, minimum rate, duration, set point, filter,
 //! prediction and Bus Watchdog, with their defaults and the checks they must pass.
 
-use softcbf_codegen::limits::{self, Limit};
+use softcbf_description::limits::{self, Limit};
+
+use crate::hardware::limits as servo;
 
 /// The shortest Bus Watchdog `softcbf run` arms by default \[s\].
 pub const DEFAULT_BUS_WATCHDOG_FLOOR: f64 = 0.1;
@@ -48,7 +50,7 @@ impl RunSettings {
     /// Three periods at `min_rate`, at least [`DEFAULT_BUS_WATCHDOG_FLOOR`], rounded up to
     /// the register's 20 ms unit and capped at its largest value \[s\].
     pub fn default_bus_watchdog(min_rate: f64) -> f64 {
-        let unit = limits::BUS_WATCHDOG_UNIT_MS / 1000.0;
+        let unit = servo::BUS_WATCHDOG_UNIT_MS / 1000.0;
         let seconds = (3.0 / min_rate).max(DEFAULT_BUS_WATCHDOG_FLOOR);
         let units = (seconds / unit).ceil().clamp(1.0, 127.0);
         if units.is_finite() {
@@ -60,7 +62,7 @@ impl RunSettings {
 
     /// The Bus Watchdog register value (units of 20 ms; `0`: off).
     pub fn bus_watchdog_units(&self) -> u8 {
-        let units = (self.bus_watchdog * 1000.0 / limits::BUS_WATCHDOG_UNIT_MS).ceil();
+        let units = (self.bus_watchdog * 1000.0 / servo::BUS_WATCHDOG_UNIT_MS).ceil();
         units.clamp(0.0, 127.0) as u8
     }
 
@@ -94,9 +96,9 @@ impl RunSettings {
         check(
             "--bus-watchdog-ms",
             self.bus_watchdog * 1000.0,
-            &limits::BUS_WATCHDOG_MS,
+            &servo::BUS_WATCHDOG_MS,
         )?;
-        let unit = limits::BUS_WATCHDOG_UNIT_MS / 1000.0;
+        let unit = servo::BUS_WATCHDOG_UNIT_MS / 1000.0;
         if self.bus_watchdog > 0.0 && self.bus_watchdog < unit {
             return Err(format!(
                 "--bus-watchdog-ms: {} ms is shorter than the register's unit of 20 ms; \
@@ -113,8 +115,8 @@ impl RunSettings {
                 self.bus_watchdog * 1000.0,
                 longest_gap * 1000.0,
                 self.min_rate,
-                (longest_gap * 1000.0 / limits::BUS_WATCHDOG_UNIT_MS).ceil()
-                    * limits::BUS_WATCHDOG_UNIT_MS
+                (longest_gap * 1000.0 / servo::BUS_WATCHDOG_UNIT_MS).ceil()
+                    * servo::BUS_WATCHDOG_UNIT_MS
             ));
         }
         Ok(())

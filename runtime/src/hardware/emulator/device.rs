@@ -115,7 +115,7 @@ impl<'m> Device<'m> {
     ) -> Result<Device<'m>, EmulatorError> {
         super::check(settings)?;
         super::check_silent_servo(settings, &map.hardware().servo_ids())?;
-        let baud_register = softcbf_codegen::hardware::baud_register(settings.baud).unwrap_or(3);
+        let baud_register = crate::hardware::limits::baud_register(settings.baud).unwrap_or(3);
         let delay_register = (settings.return_delay.as_micros() / 2).min(254) as u8;
         let origin = plant.time();
         let servos = Servos::new(map, plant, baud_register, delay_register);

@@ -39,7 +39,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use softcbf_codegen::robot::Robot;
+use softcbf_description::robot::Robot;
 
 use crate::hardware::control_table::ServoState;
 use crate::hardware::mapping::{MappingError, TendonMap};

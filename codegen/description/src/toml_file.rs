@@ -5,10 +5,12 @@ use std::io::Read;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use serde::Deserialize;
+use serde_path_to_error::Segment;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
-use crate::limits::{Limit, StateProblem};
+use crate::limits::Limit;
 
 /// Why a description file could not be used. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -109,15 +111,20 @@ impl Checker<'_> {
         }
     }
 
-    /// A [`FileError::Syntax`] from a TOML/serde error, naming the field it concerns.
+    /// A [`FileError::Syntax`] from a TOML error: at its position, with the message of
+    /// [`describe_toml`] (a duplicate key also names the line of its first definition).
     pub fn syntax(&self, error: &toml::de::Error) -> FileError {
+        self.syntax_at(error, describe_toml(self.text, error))
+    }
+
+    fn syntax_at(&self, error: &toml::de::Error, message: String) -> FileError {
         let span = error.span().unwrap_or(0..0);
         let (line, column) = line_column(self.text, span.start);
         FileError::Syntax {
             path: self.path.to_path_buf(),
             line,
             column,
-            message: describe_span(self.text, &span, error.message()),
+            message,
         }
     }
 
@@ -195,24 +202,6 @@ impl Checker<'_> {
             .collect()
     }
 
-    /// Turns a problem of a state vector (`limits::coordinates_problem`,
-    /// `velocities_problem`) written at `v` into an error on the entry it concerns.
-    pub fn state(
-        &self,
-        problem: Option<StateProblem>,
-        v: &Spanned<Vec<Spanned<f64>>>,
-        field: &str,
-    ) -> Result<(), FileError> {
-        let Some(problem) = problem else {
-            return Ok(());
-        };
-        let span = problem
-            .entry()
-            .and_then(|k| v.get_ref().get(k.wrapping_sub(1)))
-            .map_or_else(|| v.span(), Spanned::span);
-        Err(self.invalid(&span, field, problem.to_string()))
-    }
-
     /// An array that must have exactly three entries.
     pub fn three(
         &self,
@@ -224,6 +213,26 @@ impl Checker<'_> {
         let n = values.len();
         <[f64; 3]>::try_from(values)
             .map_err(|_| self.invalid(&v.span(), field, format!("needs 3 {what}, got {n} entries")))
+    }
+}
+
+impl<'a> Checker<'a> {
+    /// Reads the file's text into `T` with serde. Not TOML, a value of the wrong type or an
+    /// unknown field is a [`FileError::Syntax`] naming the field: its path comes from
+    /// `serde_path_to_error`, with arrays of tables and entries counted from 1.
+    pub fn deserialize<T: Deserialize<'a>>(&self) -> Result<T, FileError> {
+        let document = toml::Deserializer::parse(self.text).map_err(|error| self.syntax(&error))?;
+        serde_path_to_error::deserialize(document).map_err(|error| {
+            let place = place(error.path());
+            let inner = error.inner();
+            let message = plain_words(inner.message());
+            let message = if place.is_empty() {
+                message
+            } else {
+                format!("{place}: {message}")
+            };
+            self.syntax_at(inner, message)
+        })
     }
 }
 
@@ -239,91 +248,58 @@ pub fn line_column(text: &str, at: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// Where a byte offset falls in the parsed document.
-struct Hit {
-    /// Path of the table holding the key (`""`, `barrier`, `module[2]`).
-    table: String,
-    /// Path of the field (`module[2].mass`).
-    field: String,
-    /// 1-based entries when inside (nested) arrays of values, outermost first.
-    entry: Vec<usize>,
-    /// On the key rather than the value.
-    key: bool,
-    /// Span length, to keep the innermost hit.
-    len: usize,
-}
-
-fn keep(best: &mut Option<Hit>, span: Range<usize>, at: usize, hit: impl FnOnce(usize) -> Hit) {
-    let inside = span.start <= at && (at < span.end || span.is_empty() && at == span.start);
-    let len = span.end.saturating_sub(span.start);
-    if inside && best.as_ref().is_none_or(|b| len < b.len) {
-        *best = Some(hit(len));
+/// The message of a TOML error: for a duplicate key, the key, its field and the line
+/// where it was first given; otherwise TOML's own message.
+pub fn describe_toml(text: &str, error: &toml::de::Error) -> String {
+    let message = error.message();
+    match error.span() {
+        Some(span) if message.starts_with("duplicate key") => duplicate(text, &span),
+        _ => message.to_string(),
     }
 }
 
-fn locate_table(table: &DeTable, prefix: &str, at: usize, best: &mut Option<Hit>) {
-    for (key, value) in table.iter() {
-        let field = if prefix.is_empty() {
-            key.get_ref().to_string()
-        } else {
-            format!("{prefix}.{}", key.get_ref())
-        };
-        keep(best, key.span(), at, |len| Hit {
-            table: prefix.to_string(),
-            field: field.clone(),
-            entry: Vec::new(),
-            key: true,
-            len,
-        });
-        locate_value(value, prefix, &field, &[], at, best);
-    }
-}
-
-fn locate_value(
-    value: &Spanned<DeValue>,
-    table: &str,
-    field: &str,
-    entry: &[usize],
-    at: usize,
-    best: &mut Option<Hit>,
-) {
-    keep(best, value.span(), at, |len| Hit {
-        table: table.to_string(),
-        field: field.to_string(),
-        entry: entry.to_vec(),
-        key: false,
-        len,
-    });
-    match value.get_ref() {
-        DeValue::Table(inner) => locate_table(inner, field, at, best),
-        DeValue::Array(items) => {
-            for (k, item) in items.iter().enumerate() {
-                if matches!(item.get_ref(), DeValue::Table(_)) {
-                    let path = format!("{field}[{}]", k + 1);
-                    locate_table_in(item, &path, at, best);
-                } else {
-                    let inner = [entry, &[k + 1]].concat();
-                    locate_value(item, table, field, &inner, at, best);
+/// Where a serde error lies, from its path: ``field `module[2].mass` ``,
+/// ``field `gravity`, entry 2``, ``field `gains.kd`, row 1 entry 2``. Arrays of tables
+/// count from 1; the private keys of `toml::Spanned` are left out.
+fn place(path: &serde_path_to_error::Path) -> String {
+    let mut field = String::new();
+    let mut entries: Vec<usize> = Vec::new();
+    for segment in path.iter() {
+        match segment {
+            Segment::Map { key } if key.starts_with("$__serde_spanned_private") => {}
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                // Indices before a key belong to an array of tables.
+                for k in entries.drain(..) {
+                    field.push_str(&format!("[{k}]"));
                 }
+                if !field.is_empty() {
+                    field.push('.');
+                }
+                field.push_str(key);
             }
+            Segment::Seq { index } => entries.push(index + 1),
+            Segment::Unknown => {}
         }
-        _ => {}
+    }
+    if field.is_empty() {
+        return String::new();
+    }
+    match entries[..] {
+        [] => format!("field `{field}`"),
+        [k] => format!("field `{field}`, entry {k}"),
+        [i, j] => format!("field `{field}`, row {i} entry {j}"),
+        ref deeper => {
+            let path: Vec<String> = deeper.iter().map(|k| k.to_string()).collect();
+            format!("field `{field}`, entry {}", path.join("."))
+        }
     }
 }
 
-fn locate_table_in(item: &Spanned<DeValue>, path: &str, at: usize, best: &mut Option<Hit>) {
-    if let DeValue::Table(inner) = item.get_ref() {
-        locate_table(inner, path, at, best);
-    }
-}
-
-/// The message of a serde/TOML error written at `span`: for a duplicate key, the key, its
-/// field and the line where it was first given; otherwise [`describe`].
-pub fn describe_span(text: &str, span: &Range<usize>, message: &str) -> String {
-    if message.starts_with("duplicate key") {
-        return duplicate(text, span);
-    }
-    describe(text, span.start, message)
+/// serde names the Rust type it expected (`expected f64`); the files speak of numbers.
+fn plain_words(message: &str) -> String {
+    message
+        .replace("expected f64", "expected a number")
+        .replace("expected i64", "expected an integer")
 }
 
 /// Every key of `table` (recursively): its name, span and field path.
@@ -409,44 +385,6 @@ fn earlier_line(text: &str, at: usize, name: &str) -> Option<usize> {
                     .is_some_and(|rest| rest.starts_with(['.', '=', ']']))
         })
         .map(|k| k + 1)
-}
-
-/// The message of a serde/TOML error at byte `at`, with the field or table it concerns.
-pub fn describe(text: &str, at: usize, message: &str) -> String {
-    let message = message
-        .replace("expected f64", "expected a number")
-        .replace("expected i64", "expected an integer");
-    let Ok(document) = DeTable::parse(text) else {
-        return message;
-    };
-    let mut best = None;
-    locate_table(document.get_ref(), "", at, &mut best);
-    let Some(hit) = best else {
-        return message;
-    };
-    if hit.key
-        && let Some(rest) = message.strip_prefix("unknown field `")
-        && let Some((name, expected)) = rest.split_once("`, ")
-    {
-        let place = if hit.table.is_empty() {
-            "at top level".to_string()
-        } else if let Some((name, i)) = hit.table.strip_suffix(']').and_then(|s| s.rsplit_once('['))
-        {
-            format!("in [[{name}]] {i}")
-        } else {
-            format!("in [{}]", hit.table)
-        };
-        return format!("unknown field `{name}` {place}; {expected}");
-    }
-    match hit.entry[..] {
-        [] => format!("field `{}`: {message}", hit.field),
-        [k] => format!("field `{}`, entry {k}: {message}", hit.field),
-        [i, j] => format!("field `{}`, row {i} entry {j}: {message}", hit.field),
-        ref deeper => {
-            let path: Vec<String> = deeper.iter().map(|k| k.to_string()).collect();
-            format!("field `{}`, entry {}: {message}", hit.field, path.join("."))
-        }
-    }
 }
 
 /// Assertions shared by the parsers' unit tests.

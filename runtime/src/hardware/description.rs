@@ -1,18 +1,20 @@
 //! The `[hardware]` table of a robot file: serial settings, servo IDs and the calibration
-//! that maps servo angles and currents to tendon lengths and tensions (MODEL.md §6).
+//! that maps servo angles and currents to tendon lengths and tensions (§6 of the model notes).
 //!
-//! Parsed by [`crate::robot::Robot::parse`] with the same span-located errors as the rest of
-//! the file; documented in `robots/README.md`. Only what the hardware path needs is here:
-//! the mapping itself lives in the runtime (`softcbf::hardware::mapping`).
+//! The description keeps the table as written ([`HardwareTable`]); [`load`] reads and
+//! checks it with the description's errors, naming the file, line and field. The format is
+//! documented in `robots/README.md`; the mapping itself is [`super::mapping`].
 
-use std::ops::Range;
+use std::ops::{Deref, Range};
 
 use serde::Deserialize;
+use softcbf_description::domain;
+use softcbf_description::limits::{self as ranges, Limit};
+use softcbf_description::robot::{HardwareTable, Module, Robot, Routing};
+use softcbf_description::toml_file::{Checker, FileError};
 use toml::Spanned;
 
-use crate::limits::{self, Limit};
-use crate::robot::{Module, Routing};
-use crate::toml_file::{Checker, FileError};
+use super::limits;
 
 /// Where the controller takes `q̇` from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,17 +101,22 @@ pub mod defaults {
     pub const VELOCITY_UNIT_RPM: f64 = 0.229;
 }
 
-pub use crate::limits::SUPPORTED_BAUDS;
-
 // ---------------------------------------------------------------------------------------
 // The table as serde reads it.
 
 type Num = Option<Spanned<f64>>;
 type List = Option<Spanned<Vec<Spanned<f64>>>>;
 
+/// The robot file as the hardware path reads it: the `[hardware]` table only (the rest is
+/// the description's, and already checked).
+#[derive(Deserialize)]
+struct HardwareOfFile {
+    hardware: RawHardware,
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct RawHardware {
+struct RawHardware {
     baud: Option<Spanned<i64>>,
     reply_timeout_ms: Num,
     retries: Option<Spanned<i64>>,
@@ -148,12 +155,36 @@ struct RawModuleHardware {
 // ---------------------------------------------------------------------------------------
 // Checking.
 
-impl Checker<'_> {
-    /// Checks the `[hardware]` table against the robot's modules (`table` spans it).
-    pub(crate) fn hardware(
+/// The hardware of `robot`, read from its `[hardware]` table and checked against its
+/// modules; `None` when the file has no such table. Errors name the robot file, the line
+/// and the field, as the description's do.
+pub fn load(robot: &Robot) -> Result<Option<Hardware>, FileError> {
+    let Some(table) = &robot.hardware else {
+        return Ok(None);
+    };
+    let checker = TableChecker(table.checker(&robot.source));
+    let file: HardwareOfFile = checker.deserialize()?;
+    checker
+        .hardware(&file.hardware, table, &robot.modules, robot.routing)
+        .map(Some)
+}
+
+/// The description's [`Checker`] over the robot file, with the checks of this table.
+struct TableChecker<'a>(Checker<'a>);
+
+impl<'a> Deref for TableChecker<'a> {
+    type Target = Checker<'a>;
+    fn deref(&self) -> &Checker<'a> {
+        &self.0
+    }
+}
+
+impl TableChecker<'_> {
+    /// Checks the `[hardware]` table against the robot's modules.
+    fn hardware(
         &self,
         raw: &RawHardware,
-        table: &Range<usize>,
+        table: &HardwareTable,
         modules: &[Module],
         routing: Routing,
     ) -> Result<Hardware, FileError> {
@@ -250,7 +281,7 @@ impl Checker<'_> {
                         ),
                     ));
                 }
-                let problem = limits::modules_coordinates_problem(modules, &values);
+                let problem = domain::modules_coordinates_problem(modules, &values);
                 self.state(problem, v, "hardware.set_point")?;
                 values
             }
@@ -258,7 +289,7 @@ impl Checker<'_> {
         };
         if routing != Routing::Local {
             return Err(self.invalid(
-                table,
+                &table.span,
                 "hardware",
                 "the hardware path supports `routing = \"local\"` only (each module's tendons \
                  anchored at its own plates)"
@@ -267,7 +298,7 @@ impl Checker<'_> {
         }
         let Some(tables) = &raw.module else {
             return Err(self.invalid(
-                table,
+                &table.span,
                 "hardware.module",
                 format!(
                     "give one [[hardware.module]] table per module ({})",
@@ -382,7 +413,7 @@ impl Checker<'_> {
         let zero_lengths = match &raw.zero_length {
             Some(v) => {
                 let values =
-                    self.list_within(v.get_ref(), &field("zero_length"), &limits::LENGTH_M)?;
+                    self.list_within(v.get_ref(), &field("zero_length"), &ranges::LENGTH_M)?;
                 three_of(values.len(), &v.span(), "zero_length", "lengths")?;
                 [values[0], values[1], values[2]]
             }
@@ -444,30 +475,29 @@ impl Hardware {
 
     /// The Baud Rate register value (0..=7) of [`Hardware::baud`].
     pub fn baud_register(&self) -> u8 {
-        baud_register(self.baud).unwrap_or(3)
+        limits::baud_register(self.baud).unwrap_or(3)
     }
-}
-
-/// The X-series Baud Rate register value of `baud`, if it is a supported rate.
-pub fn baud_register(baud: u32) -> Option<u8> {
-    SUPPORTED_BAUDS
-        .iter()
-        .position(|&b| b == baud)
-        .map(|k| k as u8)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::{Robot, RobotError};
     use std::path::Path;
 
-    const EXAMPLE: &str = include_str!("../../robots/hardware-example.toml");
+    const EXAMPLE: &str = include_str!("../../../robots/hardware-example.toml");
+
+    /// The hardware of a robot file's text.
+    fn hardware_of(text: &str, path: &str) -> Result<Hardware, FileError> {
+        let robot = Robot::parse(text, Path::new(path))?;
+        Ok(load(&robot)?.expect("the text has a [hardware] table"))
+    }
 
     /// A one-module robot with `hardware` appended after `[hardware]`.
-    fn parse(hardware: &str) -> Result<Robot, RobotError> {
-        let text = format!("[[module]]\n[hardware]\n{hardware}");
-        Robot::parse(&text, Path::new("robots/x.toml"))
+    fn parse(hardware: &str) -> Result<Hardware, FileError> {
+        hardware_of(
+            &format!("[[module]]\n[hardware]\n{hardware}"),
+            "robots/x.toml",
+        )
     }
 
     const MODULE: &str = "[[hardware.module]]\nservo_ids = [1, 2, 3]\npulley_radius = 0.02\n\
@@ -478,15 +508,25 @@ mod tests {
     /// message.
     #[track_caller]
     fn assert_invalid(hardware: &str, line: usize, field: &str, fragment: &str) {
-        crate::toml_file::testing::assert_invalid(parse(hardware), line, field, fragment);
+        match parse(hardware) {
+            Err(FileError::Invalid {
+                line: l,
+                field: f,
+                message,
+                ..
+            }) => {
+                assert_eq!((l, f.as_str()), (line, field), "message: {message}");
+                assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
+            }
+            other => panic!("expected an Invalid error on {field}, got {other:?}"),
+        }
     }
 
     #[test]
     fn example_file_parses_with_its_values() {
         let robot = Robot::parse(EXAMPLE, Path::new("robots/hardware-example.toml")).unwrap();
-        let hw = robot
-            .hardware
-            .as_ref()
+        let hw = load(&robot)
+            .unwrap()
             .expect("the example has a [hardware] table");
         assert_eq!(hw.baud, 1_000_000);
         assert_eq!(hw.baud_register(), 3);
@@ -505,7 +545,7 @@ mod tests {
 
     #[test]
     fn defaults_fill_the_optional_fields() {
-        let hw = parse(MODULE).unwrap().hardware.unwrap();
+        let hw = parse(MODULE).unwrap();
         assert_eq!(hw.baud, defaults::BAUD);
         assert_eq!(hw.retries, defaults::RETRIES);
         assert_eq!(hw.max_consecutive_errors, defaults::MAX_CONSECUTIVE_ERRORS);
@@ -516,6 +556,7 @@ mod tests {
         assert_eq!(hw.modules[0].zero_lengths, [0.1; 3]);
         let robot = Robot::parse("[[module]]\n", Path::new("x.toml")).unwrap();
         assert!(robot.hardware.is_none());
+        assert_eq!(load(&robot).unwrap(), None);
     }
 
     #[test]
@@ -724,8 +765,6 @@ mod tests {
              position_unit_deg = 360\nvelocity_unit_rpm = 0.0001\n{}",
             module("[0.2, 40]", "[0, 1e5]").replace("0.02", "1")
         ))
-        .unwrap()
-        .hardware
         .unwrap();
         assert_eq!(hw.reply_timeout, 1.0);
         assert_eq!((hw.retries, hw.max_consecutive_errors), (1000, 1000));
@@ -773,13 +812,15 @@ mod tests {
         let error = parse(&format!("baud_rate = 57600\n{MODULE}")).unwrap_err();
         let text = error.to_string();
         assert!(
-            text.starts_with("robots/x.toml:3:1: unknown field `baud_rate` in [hardware]"),
+            text.starts_with(
+                "robots/x.toml:3:1: field `hardware.baud_rate`: unknown field `baud_rate`"
+            ),
             "{text}"
         );
         let error = parse(&MODULE.replace("pulley_radius", "pully_radius")).unwrap_err();
         let text = error.to_string();
         assert!(
-            text.contains("unknown field `pully_radius` in [[hardware.module]] 1"),
+            text.contains("field `hardware.module[1].pully_radius`: unknown field `pully_radius`"),
             "{text}"
         );
         let error = parse(&format!("velocity = \"guess\"\n{MODULE}")).unwrap_err();
@@ -794,14 +835,14 @@ mod tests {
     #[test]
     fn through_routing_and_four_tendons_are_refused() {
         let text = format!("routing = \"through\"\n[[module]]\n[hardware]\n{MODULE}");
-        let error = Robot::parse(&text, Path::new("x.toml")).unwrap_err();
+        let error = hardware_of(&text, "x.toml").unwrap_err();
         assert!(
             error.to_string().contains("`routing = \"local\"` only"),
             "{error}"
         );
         let text =
             format!("[[module]]\ntendon_angles_deg = [0, 90, 180, 270]\n[hardware]\n{MODULE}");
-        let error = Robot::parse(&text, Path::new("x.toml")).unwrap_err();
+        let error = hardware_of(&text, "x.toml").unwrap_err();
         assert!(
             error.to_string().contains("exactly 3 per module"),
             "{error}"

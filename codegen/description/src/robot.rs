@@ -2,58 +2,30 @@
 //! Structure (module count, corners, tendons) drives code generation; numbers stay runtime.
 //!
 //! The format is documented in `robots/README.md`. Parsing runs in two steps: serde reads
-//! the file into private `Raw*` structs whose values carry their byte span (type errors
-//! and unknown fields become [`RobotError::Syntax`]), then every value is checked and
-//! resolved (module field > `[defaults]` > built-in default) with the span turned into
-//! the line of an [`RobotError::Invalid`].
+//! the file into private structs whose values carry their byte span (type errors and
+//! unknown fields become [`RobotError::Syntax`] naming the field), then every value is
+//! checked and each module resolved ([`crate::module`]) with the span turned into the line
+//! of an [`RobotError::Invalid`]. The `[hardware]` table is kept as written
+//! ([`HardwareTable`]) for the runtime's hardware path, which checks it.
 
-use std::f64::consts::PI;
 use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use serde::Deserialize;
 use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
-use crate::hardware::{Hardware, RawHardware};
-use crate::limits::{self, Limit};
+use crate::limits;
+pub use crate::module::{Module, polygon_inertia};
+use crate::module::{ModuleTable, Written};
 use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
 
-/// One module: a PCC foam segment and the rigid plate on top of it. SI units.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Module {
-    /// `L0`: rest length of the backbone \[m\].
-    pub rest_length: f64,
-    /// `d`: radius from the backbone to the tendons, which defines θ \[m\].
-    pub tendon_radius: f64,
-    /// `r`: radius from the backbone to a plate corner \[m\].
-    pub corner_radius: f64,
-    /// `φ_j`: angle of each plate corner from the module's x axis \[rad\].
-    pub corner_angles: Vec<f64>,
-    /// `ψ_k`: angle of each tendon from the module's x axis \[rad\].
-    pub tendon_angles: Vec<f64>,
-    /// `m`: mass lumped in the top plate \[kg\].
-    pub mass: f64,
-    /// Principal inertia of the plate about its centre of mass, plate axes [kg·m²].
-    pub inertia: [f64; 3],
-    /// Offset of the centre of mass along the plate normal (tip-frame z) \[m\].
-    pub com_offset: f64,
-    /// `κθ`: bending stiffness [N·m/rad].
-    pub bending_stiffness: f64,
-    /// `κL`: axial stiffness [N/m].
-    pub axial_stiffness: f64,
-    /// `βθ`: bending damping [N·m·s/rad].
-    pub bending_damping: f64,
-    /// `βL`: axial damping [N·s/m].
-    pub axial_damping: f64,
-    /// `ε_j`: barrier margin of each corner \[m\] (same length as `corner_angles`).
-    pub margins: Vec<f64>,
-}
-
-/// How tendons are routed (MODEL.md §6).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// How tendons are routed (§6 of the model notes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Routing {
     /// Each tendon is anchored at its own module's two plates.
     Local,
@@ -76,8 +48,29 @@ pub struct Robot {
     pub routing: Routing,
     /// The modules, base first.
     pub modules: Vec<Module>,
-    /// The `[hardware]` table: servos and calibration, if the file has one.
-    pub hardware: Option<Hardware>,
+    /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
+    /// reads and checks it (`softcbf::hardware::description`).
+    pub hardware: Option<HardwareTable>,
+}
+
+/// The `[hardware]` table of a robot file, unread: the file's text and where the table
+/// is, so that its reader reports errors with the file, line and field like the rest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HardwareTable {
+    /// The whole robot file (spans are byte offsets into it).
+    pub text: Arc<str>,
+    /// Where the table is written.
+    pub span: Range<usize>,
+}
+
+impl HardwareTable {
+    /// A checker of the table's values, naming `path` (the robot's [`Robot::source`]).
+    pub fn checker<'a>(&'a self, path: &'a Path) -> Checker<'a> {
+        Checker {
+            text: &self.text,
+            path,
+        }
+    }
 }
 
 /// The part of a robot description that decides which code is generated.
@@ -93,54 +86,11 @@ pub struct Structure {
 
 /// Default gravity when the file gives none [m/s²].
 pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
-/// Default HOCBF gains `p1`, `p2` when the file gives none [1/s] (MODEL.md §5).
+/// Default HOCBF gains `p1`, `p2` when the file gives none [1/s] (§5 of the model notes).
 pub const DEFAULT_BARRIER_GAINS: [f64; 2] = [10.0, 10.0];
-/// Largest `modules = N` accepted: a guard against typos, not a limit of the model.
-pub const MAX_MODULES: usize = 1000;
+pub use crate::limits::MAX_MODULES;
 /// Text of `robots/paper-sim.toml`, compiled in.
-pub const PAPER_SIM_TOML: &str = include_str!("../../robots/paper-sim.toml");
-
-/// Corner angles of the paper's hexagonal plate [deg].
-const PAPER_CORNERS_DEG: [f64; 6] = [0.0, 60.0, 120.0, 180.0, 240.0, 300.0];
-/// Tendon angles of the paper's module [deg].
-const PAPER_TENDONS_DEG: [f64; 3] = [90.0, 210.0, 330.0];
-/// Barrier margin of the paper's corners \[m\].
-const PAPER_MARGIN: f64 = 0.005;
-/// Two angles closer than this modulo 2π are the same direction \[rad\].
-const ANGLE_TOLERANCE: f64 = 1e-9;
-/// `det(A Aᵀ)` of the tendon matrix must exceed this times `(tr(A Aᵀ)/3)³`.
-const RANK_TOLERANCE: f64 = 1e-12;
-
-impl Module {
-    /// The paper's simulation module (MODEL.md §1): the built-in default of every field.
-    pub fn paper() -> Module {
-        let (mass, corner_radius) = (0.15, 0.05);
-        Module {
-            rest_length: 0.1,
-            tendon_radius: 0.04,
-            corner_radius,
-            corner_angles: PAPER_CORNERS_DEG.iter().map(|a| a.to_radians()).collect(),
-            tendon_angles: PAPER_TENDONS_DEG.iter().map(|a| a.to_radians()).collect(),
-            mass,
-            inertia: polygon_inertia(mass, corner_radius, PAPER_CORNERS_DEG.len()),
-            com_offset: 0.0,
-            bending_stiffness: 10.0,
-            axial_stiffness: 10.0,
-            bending_damping: 5.0,
-            axial_damping: 5.0,
-            margins: vec![PAPER_MARGIN; PAPER_CORNERS_DEG.len()],
-        }
-    }
-}
-
-/// Principal inertia `[Ixx, Iyy, Izz]` [kg·m²] of a uniform thin regular polygon plate of
-/// mass `mass` \[kg\] with `corners` corners at radius `corner_radius` \[m\], about its centre:
-/// `Izz = m r²/6 · (1 + 2 cos²(π/n))`, `Ixx = Iyy = Izz/2` (hexagon: `diag(5/24, 5/24, 5/12)·m r²`).
-pub fn polygon_inertia(mass: f64, corner_radius: f64, corners: usize) -> [f64; 3] {
-    let cos = (PI / corners as f64).cos();
-    let izz = mass * corner_radius * corner_radius / 6.0 * (1.0 + 2.0 * cos * cos);
-    [izz / 2.0, izz / 2.0, izz]
-}
+pub const PAPER_SIM_TOML: &str = include_str!("../../../robots/paper-sim.toml");
 
 impl Robot {
     /// The structure that code generation depends on.
@@ -162,8 +112,8 @@ impl Robot {
     /// its file stem is the name when the file gives none). Never panics.
     pub fn parse(text: &str, path: &Path) -> Result<Robot, RobotError> {
         let checker = Checker { text, path };
-        let raw: RawRobot = toml::from_str(text).map_err(|error| checker.syntax(&error))?;
-        checker.robot(raw)
+        let file: RobotFile = checker.deserialize()?;
+        checker.robot(file)
     }
 
     /// The paper's simulation robot: `robots/paper-sim.toml` as compiled in, with source
@@ -181,117 +131,53 @@ impl Structure {
     }
 }
 
-/// Why a robot file could not be used. Every variant names the file.
-
 // ---------------------------------------------------------------------------------------
 // The file as serde reads it: every value keeps its byte span.
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct RawRobot {
+struct RobotFile {
     name: Option<String>,
     gravity: Option<Spanned<Vec<Spanned<f64>>>>,
-    routing: Option<RawRouting>,
-    barrier: Option<RawBarrier>,
-    defaults: Option<RawModule>,
-    module: Option<Spanned<Vec<RawModule>>>,
-    modules: Option<Spanned<RawCount>>,
-    hardware: Option<Spanned<RawHardware>>,
-}
-
-#[derive(Deserialize)]
-#[serde(rename_all = "lowercase")]
-enum RawRouting {
-    Local,
-    Through,
+    routing: Option<Routing>,
+    barrier: Option<BarrierTable>,
+    defaults: Option<ModuleTable>,
+    module: Option<Spanned<Vec<ModuleTable>>>,
+    modules: Option<Spanned<Count>>,
+    /// Any table: its fields are the hardware path's to read.
+    hardware: Option<Spanned<toml::Table>>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct RawBarrier {
+struct BarrierTable {
     p1: Option<Spanned<f64>>,
     p2: Option<Spanned<f64>>,
 }
 
-type RawNumber = Option<Spanned<f64>>;
-type RawList = Option<Spanned<Vec<Spanned<f64>>>>;
-
-#[derive(Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawModule {
-    rest_length: RawNumber,
-    tendon_radius: RawNumber,
-    corner_radius: RawNumber,
-    corner_angles_deg: RawList,
-    tendon_angles_deg: RawList,
-    mass: RawNumber,
-    inertia: RawList,
-    com_offset: RawNumber,
-    bending_stiffness: RawNumber,
-    axial_stiffness: RawNumber,
-    bending_damping: RawNumber,
-    axial_damping: RawNumber,
-    margin: Option<Spanned<RawMargin>>,
-}
-
-/// `margin`: one number for all corners, or one per corner.
-enum RawMargin {
-    All(f64),
-    Each(Vec<Spanned<f64>>),
-}
-
-impl<'de> Deserialize<'de> for RawMargin {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct MarginVisitor;
-        impl<'de> Visitor<'de> for MarginVisitor {
-            type Value = RawMargin;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a number [m] or an array of numbers, one per corner")
-            }
-            fn visit_f64<E: de::Error>(self, v: f64) -> Result<RawMargin, E> {
-                Ok(RawMargin::All(v))
-            }
-            fn visit_i64<E: de::Error>(self, v: i64) -> Result<RawMargin, E> {
-                Ok(RawMargin::All(v as f64))
-            }
-            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RawMargin, E> {
-                Ok(RawMargin::All(v as f64))
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<RawMargin, A::Error> {
-                let mut each = Vec::new();
-                while let Some(value) = seq.next_element::<Spanned<f64>>()? {
-                    each.push(value);
-                }
-                Ok(RawMargin::Each(each))
-            }
-        }
-        deserializer.deserialize_any(MarginVisitor)
-    }
-}
-
 /// `modules = N`, with a pointed message for the typo `[[modules]]`.
-struct RawCount(i64);
+struct Count(i64);
 
-impl<'de> Deserialize<'de> for RawCount {
+impl<'de> Deserialize<'de> for Count {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         struct CountVisitor;
         const TABLES: &str = "`modules = N` takes the number of modules (an integer); \
                               module tables are written [[module]], singular";
         impl<'de> Visitor<'de> for CountVisitor {
-            type Value = RawCount;
+            type Value = Count;
             fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
                 f.write_str("the number of modules (an integer)")
             }
-            fn visit_i64<E: de::Error>(self, v: i64) -> Result<RawCount, E> {
-                Ok(RawCount(v))
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<Count, E> {
+                Ok(Count(v))
             }
-            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RawCount, E> {
-                Ok(RawCount(i64::try_from(v).unwrap_or(i64::MAX)))
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Count, E> {
+                Ok(Count(i64::try_from(v).unwrap_or(i64::MAX)))
             }
-            fn visit_seq<A: SeqAccess<'de>>(self, _: A) -> Result<RawCount, A::Error> {
+            fn visit_seq<A: SeqAccess<'de>>(self, _: A) -> Result<Count, A::Error> {
                 Err(de::Error::custom(TABLES))
             }
-            fn visit_map<A: MapAccess<'de>>(self, _: A) -> Result<RawCount, A::Error> {
+            fn visit_map<A: MapAccess<'de>>(self, _: A) -> Result<Count, A::Error> {
                 Err(de::Error::custom(TABLES))
             }
         }
@@ -302,81 +188,38 @@ impl<'de> Deserialize<'de> for RawCount {
 // ---------------------------------------------------------------------------------------
 // Checking and resolving.
 
-/// A checked value, where it was written and under which field path.
-struct Val<T> {
-    value: T,
-    span: Range<usize>,
-    field: String,
-}
-
-/// A checked margin: one for every corner, or one per corner.
-#[derive(Clone)]
-enum Margin {
-    All(f64),
-    Each(Vec<f64>),
-}
-
-/// The checked fields of one `[[module]]` or of `[defaults]`; `None` where not written.
-#[derive(Default)]
-struct Fields {
-    rest_length: Option<Val<f64>>,
-    tendon_radius: Option<Val<f64>>,
-    corner_radius: Option<Val<f64>>,
-    corner_angles: Option<Val<Vec<f64>>>,
-    tendon_angles: Option<Val<Vec<f64>>>,
-    mass: Option<Val<f64>>,
-    inertia: Option<Val<[f64; 3]>>,
-    com_offset: Option<Val<f64>>,
-    bending_stiffness: Option<Val<f64>>,
-    axial_stiffness: Option<Val<f64>>,
-    bending_damping: Option<Val<f64>>,
-    axial_damping: Option<Val<f64>>,
-    margin: Option<Val<Margin>>,
-}
-
-/// The value of `own` if written, else of `defaults`, else `builtin`.
-fn resolve<T: Clone>(own: &Option<Val<T>>, defaults: &Option<Val<T>>, builtin: T) -> T {
-    own.as_ref()
-        .or(defaults.as_ref())
-        .map_or(builtin, |v| v.value.clone())
-}
-
 impl Checker<'_> {
-    fn robot(&self, raw: RawRobot) -> Result<Robot, RobotError> {
-        let name = raw.name.unwrap_or_else(|| {
+    fn robot(&self, file: RobotFile) -> Result<Robot, RobotError> {
+        let name = file.name.unwrap_or_else(|| {
             self.path
                 .file_stem()
                 .map_or_else(|| "robot".to_string(), |s| s.to_string_lossy().into_owned())
         });
-        let gravity = match &raw.gravity {
+        let gravity = match &file.gravity {
             Some(g) => {
                 let v = self.list_within(g.get_ref(), "gravity", &limits::GRAVITY_M_S2)?;
                 self.three(v, g, "gravity", "components [gx, gy, gz]")?
             }
             None => DEFAULT_GRAVITY,
         };
-        let routing = match raw.routing {
-            None | Some(RawRouting::Local) => Routing::Local,
-            Some(RawRouting::Through) => Routing::Through,
-        };
         let mut barrier_gains = DEFAULT_BARRIER_GAINS;
-        if let Some(barrier) = &raw.barrier {
+        if let Some(barrier) = &file.barrier {
             let [p1, p2] = &mut barrier_gains;
-            for (gain, raw, field) in [
+            for (gain, value, field) in [
                 (p1, &barrier.p1, "barrier.p1"),
                 (p2, &barrier.p2, "barrier.p2"),
             ] {
-                if let Some(v) = raw {
+                if let Some(v) = value {
                     *gain = self.within(v, field, &limits::BARRIER_GAIN_PER_S)?;
                 }
             }
         }
-        let defaults = match &raw.defaults {
-            Some(d) => self.fields(d, "defaults")?,
-            None => Fields::default(),
+        let defaults = match &file.defaults {
+            Some(d) => self.written(d, "defaults")?,
+            None => Written::default(),
         };
         let default_tables;
-        let tables: &[RawModule] = match (&raw.module, &raw.modules) {
+        let tables: &[ModuleTable] = match (&file.module, &file.modules) {
             (Some(_), Some(n)) => {
                 return Err(self.invalid(
                     &n.span(),
@@ -396,7 +239,9 @@ impl Checker<'_> {
                 let count = limits::MODULES
                     .check_integer(n.get_ref().0)
                     .map_err(|message| self.invalid(&n.span(), "modules", message))?;
-                default_tables = (0..count).map(|_| RawModule::default()).collect::<Vec<_>>();
+                default_tables = (0..count)
+                    .map(|_| ModuleTable::default())
+                    .collect::<Vec<_>>();
                 &default_tables
             }
             (None, None) => {
@@ -412,320 +257,30 @@ impl Checker<'_> {
         let mut modules = Vec::with_capacity(tables.len());
         for (i, table) in tables.iter().enumerate() {
             let prefix = format!("module[{}]", i + 1);
-            let own = self.fields(table, &prefix)?;
-            modules.push(self.module(&own, &defaults, &prefix)?);
+            let own = self.written(table, &prefix)?;
+            modules.push(self.resolve(&own, &defaults, &prefix)?);
         }
-        let hardware = match &raw.hardware {
-            Some(table) => {
-                Some(self.hardware(table.get_ref(), &table.span(), &modules, routing)?)
-            }
-            None => None,
-        };
         Ok(Robot {
             name,
             source: self.path.to_path_buf(),
             gravity,
             barrier_gains,
-            routing,
+            routing: file.routing.unwrap_or(Routing::Local),
             modules,
-            hardware,
+            hardware: file.hardware.map(|table| HardwareTable {
+                text: Arc::from(self.text),
+                span: table.span(),
+            }),
         })
-    }
-
-    /// Resolves one module from its own fields, `[defaults]` and the built-in values.
-    fn module(&self, own: &Fields, defaults: &Fields, prefix: &str) -> Result<Module, RobotError> {
-        let paper = Module::paper();
-        let corner_angles = resolve(
-            &own.corner_angles,
-            &defaults.corner_angles,
-            paper.corner_angles,
-        );
-        let corners = corner_angles.len();
-        let mass = resolve(&own.mass, &defaults.mass, paper.mass);
-        let corner_radius = resolve(
-            &own.corner_radius,
-            &defaults.corner_radius,
-            paper.corner_radius,
-        );
-        let inertia = resolve(
-            &own.inertia,
-            &defaults.inertia,
-            polygon_inertia(mass, corner_radius, corners),
-        );
-        let margins = match own.margin.as_ref().or(defaults.margin.as_ref()) {
-            None => vec![PAPER_MARGIN; corners],
-            Some(Val {
-                value: Margin::All(e),
-                ..
-            }) => vec![*e; corners],
-            Some(Val {
-                value: Margin::Each(each),
-                span,
-                field,
-            }) => {
-                if each.len() != corners {
-                    return Err(self.invalid(
-                        span,
-                        field,
-                        format!(
-                            "has {} entries but {prefix} has {corners} corners; give one \
-                             margin per corner, or a single number for all",
-                            each.len()
-                        ),
-                    ));
-                }
-                each.clone()
-            }
-        };
-        Ok(Module {
-            rest_length: resolve(&own.rest_length, &defaults.rest_length, paper.rest_length),
-            tendon_radius: resolve(
-                &own.tendon_radius,
-                &defaults.tendon_radius,
-                paper.tendon_radius,
-            ),
-            corner_radius,
-            corner_angles,
-            tendon_angles: resolve(
-                &own.tendon_angles,
-                &defaults.tendon_angles,
-                paper.tendon_angles,
-            ),
-            mass,
-            inertia,
-            com_offset: resolve(&own.com_offset, &defaults.com_offset, paper.com_offset),
-            bending_stiffness: resolve(
-                &own.bending_stiffness,
-                &defaults.bending_stiffness,
-                paper.bending_stiffness,
-            ),
-            axial_stiffness: resolve(
-                &own.axial_stiffness,
-                &defaults.axial_stiffness,
-                paper.axial_stiffness,
-            ),
-            bending_damping: resolve(
-                &own.bending_damping,
-                &defaults.bending_damping,
-                paper.bending_damping,
-            ),
-            axial_damping: resolve(
-                &own.axial_damping,
-                &defaults.axial_damping,
-                paper.axial_damping,
-            ),
-            margins,
-        })
-    }
-
-    /// Checks every field written in one module table (or `[defaults]`) on its own.
-    fn fields(&self, raw: &RawModule, prefix: &str) -> Result<Fields, RobotError> {
-        let field = |name: &str| format!("{prefix}.{name}");
-        let number = |v: &RawNumber, name: &str, limit: &Limit| {
-            v.as_ref()
-                .map(|v| {
-                    let field = field(name);
-                    let value = self.within(v, &field, limit)?;
-                    Ok(Val {
-                        value,
-                        span: v.span(),
-                        field,
-                    })
-                })
-                .transpose()
-        };
-        let angles = |v: &RawList, name: &str, what: &str| {
-            v.as_ref()
-                .map(|v| {
-                    let field = field(name);
-                    let value = self.angles(v, &field, what)?;
-                    Ok(Val {
-                        value,
-                        span: v.span(),
-                        field,
-                    })
-                })
-                .transpose()
-        };
-        let fields = Fields {
-            rest_length: number(&raw.rest_length, "rest_length", &limits::LENGTH_M)?,
-            tendon_radius: number(&raw.tendon_radius, "tendon_radius", &limits::LENGTH_M)?,
-            corner_radius: number(&raw.corner_radius, "corner_radius", &limits::LENGTH_M)?,
-            corner_angles: angles(&raw.corner_angles_deg, "corner_angles_deg", "corner")?,
-            tendon_angles: angles(&raw.tendon_angles_deg, "tendon_angles_deg", "tendon")?,
-            mass: number(&raw.mass, "mass", &limits::MASS_KG)?,
-            inertia: raw
-                .inertia
-                .as_ref()
-                .map(|v| {
-                    let field = field("inertia");
-                    let value = self.inertia(v, &field)?;
-                    Ok(Val {
-                        value,
-                        span: v.span(),
-                        field,
-                    })
-                })
-                .transpose()?,
-            com_offset: number(&raw.com_offset, "com_offset", &limits::COM_OFFSET_M)?,
-            bending_stiffness: number(
-                &raw.bending_stiffness,
-                "bending_stiffness",
-                &limits::BENDING_STIFFNESS,
-            )?,
-            axial_stiffness: number(
-                &raw.axial_stiffness,
-                "axial_stiffness",
-                &limits::AXIAL_STIFFNESS,
-            )?,
-            bending_damping: number(
-                &raw.bending_damping,
-                "bending_damping",
-                &limits::BENDING_DAMPING,
-            )?,
-            axial_damping: number(&raw.axial_damping, "axial_damping", &limits::AXIAL_DAMPING)?,
-            margin: raw
-                .margin
-                .as_ref()
-                .map(|v| {
-                    let field = field("margin");
-                    let value = match v.get_ref() {
-                        RawMargin::All(e) => Margin::All(self.limited(
-                            *e,
-                            &v.span(),
-                            &field,
-                            "",
-                            &limits::MARGIN_M,
-                        )?),
-                        RawMargin::Each(each) => {
-                            Margin::Each(self.list_within(each, &field, &limits::MARGIN_M)?)
-                        }
-                    };
-                    Ok(Val {
-                        value,
-                        span: v.span(),
-                        field,
-                    })
-                })
-                .transpose()?,
-        };
-        Ok(fields)
-    }
-
-    /// Corner or tendon angles: finite degrees, at least 3, distinct modulo 360°; for
-    /// tendons also a full-rank tendon matrix. Returns radians.
-    fn angles(
-        &self,
-        v: &Spanned<Vec<Spanned<f64>>>,
-        field: &str,
-        what: &str,
-    ) -> Result<Vec<f64>, RobotError> {
-        let degrees = self.list_within(v.get_ref(), field, &limits::ANGLE_DEG)?;
-        if degrees.len() < 3 {
-            return Err(self.invalid(
-                &v.span(),
-                field,
-                format!("needs at least 3 {what}s, got {}", degrees.len()),
-            ));
-        }
-        let radians: Vec<f64> = degrees.iter().map(|d| d.to_radians()).collect();
-        // Sort the directions on the circle; neighbours (and last/first) must differ.
-        let mut order: Vec<(f64, usize)> = radians
-            .iter()
-            .enumerate()
-            .map(|(k, a)| (a.rem_euclid(2.0 * PI), k))
-            .collect();
-        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let n = order.len();
-        for i in 0..n {
-            let (a, ka) = order[i];
-            let (b, kb) = order[(i + 1) % n];
-            let gap = if i + 1 == n { b + 2.0 * PI - a } else { b - a };
-            if gap < ANGLE_TOLERANCE {
-                let (first, second) = (ka.min(kb), ka.max(kb));
-                return Err(self.invalid(
-                    &v.get_ref()[second].span(),
-                    field,
-                    format!(
-                        "entry {} ({}°) is the same direction as entry {} ({}°); {what} angles \
-                         must be distinct modulo 360°",
-                        second + 1,
-                        degrees[second],
-                        first + 1,
-                        degrees[first]
-                    ),
-                ));
-            }
-        }
-        if what == "tendon" {
-            // Gram matrix G = A Aᵀ of the 3×N tendon matrix with columns (cos ψ, sin ψ, −1).
-            let mut g = [[0.0; 3]; 3];
-            for psi in &radians {
-                let column = [psi.cos(), psi.sin(), -1.0];
-                for (r, row) in g.iter_mut().enumerate() {
-                    for (c, entry) in row.iter_mut().enumerate() {
-                        *entry += column[r] * column[c];
-                    }
-                }
-            }
-            let det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1])
-                - g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0])
-                + g[0][2] * (g[1][0] * g[2][1] - g[1][1] * g[2][0]);
-            let scale = ((g[0][0] + g[1][1] + g[2][2]) / 3.0).powi(3);
-            if det <= RANK_TOLERANCE * scale {
-                return Err(self.invalid(
-                    &v.span(),
-                    field,
-                    format!(
-                        "the tendon directions (cos ψ, sin ψ, −1) do not span R³ \
-                         (det(A Aᵀ)/(tr/3)³ = {:.1e} ≤ {RANK_TOLERANCE:.0e}), so τ = A f has no \
-                         unique tensions; spread the tendons around the backbone",
-                        det / scale
-                    ),
-                ));
-            }
-        }
-        Ok(radians)
-    }
-
-    /// Principal moments: three, each > 0, and the triangle inequalities of a rigid body.
-    fn inertia(&self, v: &Spanned<Vec<Spanned<f64>>>, field: &str) -> Result<[f64; 3], RobotError> {
-        let values = self.list_within(v.get_ref(), field, &limits::INERTIA_KG_M2)?;
-        let moments = self.three(
-            values,
-            v,
-            field,
-            "principal moments [Ixx, Iyy, Izz] in kg·m²",
-        )?;
-        let names = ["Ixx", "Iyy", "Izz"];
-        for c in 0..3 {
-            let (a, b) = ((c + 1) % 3, (c + 2) % 3);
-            let (a, b) = (a.min(b), a.max(b));
-            if moments[a] + moments[b] < moments[c] * (1.0 - 1e-12) {
-                return Err(self.invalid(
-                    &v.span(),
-                    field,
-                    format!(
-                        "principal moments violate the triangle inequality of a rigid body: \
-                         {} + {} = {} < {} = {}",
-                        names[a],
-                        names[b],
-                        moments[a] + moments[b],
-                        names[c],
-                        moments[c]
-                    ),
-                ));
-            }
-        }
-        Ok(moments)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
-    const THREE_SQUARE_TOML: &str = include_str!("../../robots/three-square.toml");
+    const THREE_SQUARE_TOML: &str = include_str!("../../../robots/three-square.toml");
 
     fn parse(text: &str) -> Result<Robot, RobotError> {
         Robot::parse(text, Path::new("robots/x.toml"))
@@ -812,7 +367,7 @@ mod tests {
 
     #[test]
     fn load_reads_the_shipped_files() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots");
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots");
         let robot = Robot::load(&dir.join("paper-sim.toml")).unwrap();
         assert_eq!(robot.modules, Robot::paper_sim().modules);
         assert!(Robot::load(&dir.join("three-square.toml")).is_ok());
@@ -1310,31 +865,31 @@ mod tests {
             "[[module]]\nmass = 0.1\n[[module]]\n  foo = 3\n",
             4,
             3,
-            "unknown field `foo` in [[module]] 2; expected one of `rest_length`",
+            "field `module[2].foo`: unknown field `foo`, expected one of `rest_length`",
         );
         assert_syntax(
             "naem = \"x\"\n[[module]]",
             1,
             1,
-            "unknown field `naem` at top level; expected one of `name`",
+            "field `naem`: unknown field `naem`, expected one of `name`",
         );
         assert_syntax(
             "[defaults]\ncorner_raduis = 1\n",
             2,
             1,
-            "unknown field `corner_raduis` in [defaults]",
+            "field `defaults.corner_raduis`: unknown field `corner_raduis`",
         );
         assert_syntax(
             "[barrier]\np = 1\n",
             2,
             1,
-            "unknown field `p` in [barrier]; expected `p1` or `p2`",
+            "field `barrier.p`: unknown field `p`, expected `p1` or `p2`",
         );
         assert_syntax(
             "module = [{mass = 1}, {mas = 1}]",
             1,
             24,
-            "unknown field `mas` in [[module]] 2",
+            "field `module[2].mas`: unknown field `mas`",
         );
         assert_syntax(
             "[[modules]]\nmass = 1",

@@ -1,0 +1,286 @@
+//! The valid range of every number a user gives softcbf, in a description file or on the
+//! command line: one definition per setting, so that both are checked by the same rule.
+//!
+//! A [`Limit`] says what a value must be (finite, between bounds, perhaps an integer) and
+//! builds the message when it is not; the file checker (`toml_file`) adds the file, line
+//! and field, the command line adds the option's name. The ranges are physical: a bound
+//! says where a value stops describing a robot (a reply that takes more than a second, a
+//! module longer than 10 m), not where the arithmetic happens to break, and every value
+//! inside them leaves the model's arithmetic finite (`tests/tests/descriptions.rs`).
+//!
+//! The state domain of the model (`q`, `q̇`) is bounded in the same spirit by
+//! [`crate::domain`].
+
+/// What a number must be: finite, within `[min, max]` (or `(min, max]`), perhaps an
+/// integer. `unit` is for messages.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limit {
+    /// Lower bound.
+    pub min: f64,
+    /// Whether `min` itself is allowed (`false`: the value must exceed it).
+    pub min_inclusive: bool,
+    /// Upper bound (always allowed).
+    pub max: f64,
+    /// Whether the value must be a whole number.
+    pub integer: bool,
+    /// Unit shown in messages (`""` for none).
+    pub unit: &'static str,
+}
+
+impl Limit {
+    /// `min ≤ value ≤ max`.
+    pub const fn closed(min: f64, max: f64, unit: &'static str) -> Limit {
+        Limit {
+            min,
+            min_inclusive: true,
+            max,
+            integer: false,
+            unit,
+        }
+    }
+
+    /// `min < value ≤ max`.
+    pub const fn above(min: f64, max: f64, unit: &'static str) -> Limit {
+        Limit {
+            min,
+            min_inclusive: false,
+            max,
+            integer: false,
+            unit,
+        }
+    }
+
+    /// The same range mirrored to negative values, `-max ≤ value ≤ max` (for entries whose
+    /// sign is free, such as the off-diagonal entries of a gain matrix).
+    pub const fn either_sign(self) -> Limit {
+        Limit {
+            min: -self.max,
+            min_inclusive: true,
+            ..self
+        }
+    }
+
+    /// A whole number in `min..=max`.
+    pub const fn integer(min: i64, max: i64) -> Limit {
+        Limit {
+            min: min as f64,
+            min_inclusive: true,
+            max: max as f64,
+            integer: true,
+            unit: "",
+        }
+    }
+
+    /// Whether `value` is allowed.
+    pub fn contains(&self, value: f64) -> bool {
+        let low = if self.min_inclusive {
+            value >= self.min
+        } else {
+            value > self.min
+        };
+        value.is_finite() && low && value <= self.max && (!self.integer || value.fract() == 0.0)
+    }
+
+    /// The allowed range in words: `> 0 and ≤ 1000 ms`, `an integer in 1..=1000`.
+    pub fn describe(&self) -> String {
+        if self.integer {
+            return format!("an integer in {}..={}", self.min, self.max);
+        }
+        let unit = match self.unit {
+            "" => String::new(),
+            "°" => "°".to_string(),
+            unit => format!(" {unit}"),
+        };
+        let low = if self.min_inclusive { "≥" } else { ">" };
+        format!("{low} {} and ≤ {}{unit}", short(self.min), short(self.max))
+    }
+
+    /// `Ok(value)` if allowed, else the message (without the field's name):
+    /// `must be > 0 and ≤ 1000 ms, got 1e300`.
+    pub fn check(&self, value: f64) -> Result<f64, String> {
+        if self.contains(value) {
+            return Ok(value);
+        }
+        if value.is_nan() || (!self.integer && value.is_infinite()) {
+            return Err(format!(
+                "must be a finite number {}, got {value}",
+                self.describe()
+            ));
+        }
+        Err(format!("must be {}, got {}", self.describe(), short(value)))
+    }
+
+    /// [`Limit::check`] for an integer setting, returned as `i64`.
+    pub fn check_integer(&self, value: i64) -> Result<i64, String> {
+        if self.contains(value as f64) {
+            Ok(value)
+        } else {
+            Err(format!("must be {}, got {value}", self.describe()))
+        }
+    }
+}
+
+/// `x` in the shortest readable form: `1000`, `0.25`, `1e300`, `1e-9`.
+pub fn short(x: f64) -> String {
+    let magnitude = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&magnitude) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The robot file: modules, gravity, barrier gains.
+
+/// Largest `modules = N` accepted: a guard against typos, not a limit of the model.
+pub const MAX_MODULES: usize = 1000;
+/// Number of modules of a robot (`modules = N`): a guard against typos, not a limit of the
+/// model.
+pub const MODULES: Limit = Limit::integer(1, MAX_MODULES as i64);
+/// A length or radius of a module \[m\] (`rest_length`, `tendon_radius`, `corner_radius`,
+/// a tendon's `zero_length`): from a tenth of a millimetre (below, foam and plates are no
+/// longer rigid bodies on a backbone) to 10 m (no soft module is longer).
+pub const LENGTH_M: Limit = Limit::closed(1e-4, 10.0, "m");
+/// Mass lumped in a plate \[kg\]: a milligram to ten tonnes.
+pub const MASS_KG: Limit = Limit::closed(1e-6, 1e4, "kg");
+/// A principal moment of inertia of a plate \[kg·m²\]: from a milligram disc of 0.1 mm
+/// radius (`m r²/8 ≈ 1e-15`) to ten tonnes at ten metres (`m r² = 1e6`).
+pub const INERTIA_KG_M2: Limit = Limit::closed(1e-16, 1e6, "kg·m²");
+/// Offset of a plate's centre of mass along its normal \[m\]: within a module's length.
+pub const COM_OFFSET_M: Limit = Limit::closed(-10.0, 10.0, "m");
+/// A corner or tendon angle \[deg\]: one turn either way covers every direction.
+pub const ANGLE_DEG: Limit = Limit::closed(-360.0, 360.0, "°");
+/// Bending stiffness `κθ` \[N·m/rad\]: soft modules have 0.01–10; 1e4 is a steel rod.
+pub const BENDING_STIFFNESS: Limit = Limit::closed(0.0, 1e4, "N·m/rad");
+/// Axial stiffness `κL` \[N/m\]: soft modules have 10–1e4; 1e7 is a steel spring.
+pub const AXIAL_STIFFNESS: Limit = Limit::closed(0.0, 1e7, "N/m");
+/// Bending damping `βθ` \[N·m·s/rad\]: as the bending stiffness, at most 1e4.
+pub const BENDING_DAMPING: Limit = Limit::closed(0.0, 1e4, "N·m·s/rad");
+/// Axial damping `βL` \[N·s/m\]: an industrial shock absorber has 1e5.
+pub const AXIAL_DAMPING: Limit = Limit::closed(0.0, 1e6, "N·s/m");
+/// Barrier margin of a corner \[m\]: a safety distance of more than a metre between
+/// plates describes no contact.
+pub const MARGIN_M: Limit = Limit::closed(0.0, 1.0, "m");
+/// A component of gravity \[m/s²\]: ten times the Earth's covers every planet and a
+/// centrifuge.
+pub const GRAVITY_M_S2: Limit = Limit::closed(-100.0, 100.0, "m/s²");
+/// HOCBF class-K gains `p1`, `p2` \[1/s\] (robot `[barrier]`, scenario `[gains]`): above
+/// 1e4 1/s a barrier would be corrected within 0.1 ms, faster than any actuator.
+pub const BARRIER_GAIN_PER_S: Limit = Limit::above(0.0, 1e4, "1/s");
+
+// ---------------------------------------------------------------------------------------
+// The scenario file (with DURATION_S below).
+
+/// Control period of a simulation \[s\]: 1 µs (1 MHz) to 1 s (the slowest loop,
+/// [`RATE_HZ`]).
+pub const CONTROL_PERIOD_S: Limit = Limit::closed(1e-6, 1.0, "s");
+/// Time of a waypoint \[s\]: within the longest run ([`DURATION_S`]).
+pub const WAYPOINT_TIME_S: Limit = Limit::closed(0.0, 1e6, "s");
+/// A diagonal entry (or the scalar) of `K_P` \[N/m\]: 1e6 N/m moves a 10 t plate at 1.6 Hz
+/// and a milligram one far beyond any servo; off-diagonal entries lie within `±max`.
+pub const KP_N_PER_M: Limit = Limit::closed(0.0, 1e6, "N/m");
+/// A diagonal entry (or the scalar) of `K_D` \[N·s/m\]; off-diagonal entries within `±max`.
+pub const KD_N_S_PER_M: Limit = Limit::closed(0.0, 1e6, "N·s/m");
+/// Relative tolerance of the plant integration: above 1 nothing is controlled; below
+/// 1e-12 it asks for more than double precision can give.
+pub const RTOL: Limit = Limit::closed(1e-12, 1.0, "");
+/// Absolute tolerance of the plant integration \[m, m/s\]: a femtometre to a metre.
+pub const ATOL: Limit = Limit::closed(1e-15, 1.0, "");
+/// First step of the plant integration \[s\]: from the integrator's smallest step
+/// (1e-12 s) to the longest control period.
+pub const H_INITIAL_S: Limit = Limit::closed(1e-12, 1.0, "s");
+/// Step attempts of the plant integration within one tick.
+pub const MAX_STEPS: Limit = Limit::integer(1, 10_000_000);
+
+// ---------------------------------------------------------------------------------------
+// The hardware loop (`softcbf run`); the servo and bus settings are the runtime's
+// (`softcbf::hardware::limits`).
+
+/// Loop rate \[Hz\]: below 1 Hz a soft robot moves a barrier's width between ticks; above
+/// 10 kHz no servo bus answers (6 servos at 4.5 Mbit/s: ≈ 2 kHz).
+pub const RATE_HZ: Limit = Limit::closed(1.0, 10_000.0, "Hz");
+/// Duration of a run or a simulation \[s\] (up to about 11 days).
+pub const DURATION_S: Limit = Limit::above(0.0, 1e6, "s");
+/// Lowest barrier a run may reach and still count as safe \[m\].
+pub const BARRIER_THRESHOLD_M: Limit = Limit::closed(-1.0, 1.0, "m");
+/// Default of [`BARRIER_THRESHOLD_M`]: one millimetre of penetration of the margin.
+pub const DEFAULT_BARRIER_THRESHOLD: f64 = -1e-3;
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn limits_accept_their_range_and_name_it_otherwise() {
+        assert_eq!(RATE_HZ.check(33.0), Ok(33.0));
+        assert_eq!(RATE_HZ.check(10_000.0), Ok(10_000.0));
+        assert_eq!(
+            DURATION_S.check(1e300).unwrap_err(),
+            "must be > 0 and ≤ 1000000 s, got 1e300"
+        );
+        assert!(DURATION_S.check(0.0).unwrap_err().contains("> 0"));
+        assert!(DURATION_S.check(f64::NAN).unwrap_err().contains("finite"));
+        assert!(RATE_HZ.check(f64::INFINITY).unwrap_err().contains("finite"));
+        assert_eq!(MAX_STEPS.check_integer(10_000_000), Ok(10_000_000));
+        assert_eq!(
+            MODULES.check_integer(100_000).unwrap_err(),
+            "must be an integer in 1..=1000, got 100000"
+        );
+        assert!(MODULES.check(2.5).is_err());
+        assert!(RATE_HZ.check(1e-9).is_err());
+        assert!(RATE_HZ.check(-33.0).is_err());
+    }
+
+    /// Every range is a proper interval with finite ends (integer ranges with whole ends),
+    /// and its description is what the READMEs print.
+    #[test]
+    fn every_range_is_a_proper_interval_described_in_short_numbers() {
+        let all = [
+            RATE_HZ,
+            DURATION_S,
+            BARRIER_THRESHOLD_M,
+            MODULES,
+            LENGTH_M,
+            MASS_KG,
+            INERTIA_KG_M2,
+            COM_OFFSET_M,
+            ANGLE_DEG,
+            BENDING_STIFFNESS,
+            AXIAL_STIFFNESS,
+            BENDING_DAMPING,
+            AXIAL_DAMPING,
+            MARGIN_M,
+            GRAVITY_M_S2,
+            BARRIER_GAIN_PER_S,
+            CONTROL_PERIOD_S,
+            WAYPOINT_TIME_S,
+            KP_N_PER_M,
+            KD_N_S_PER_M,
+            RTOL,
+            ATOL,
+            H_INITIAL_S,
+            MAX_STEPS,
+        ];
+        for limit in all {
+            assert!(limit.min.is_finite() && limit.max.is_finite() && limit.min < limit.max);
+            assert!(limit.contains(limit.max), "{limit:?}");
+            assert_eq!(limit.contains(limit.min), limit.min_inclusive, "{limit:?}");
+            if limit.integer {
+                assert_eq!((limit.min.fract(), limit.max.fract()), (0.0, 0.0));
+            }
+        }
+        assert_eq!(INERTIA_KG_M2.describe(), "≥ 1e-16 and ≤ 1000000 kg·m²");
+        assert_eq!(ANGLE_DEG.describe(), "≥ -360 and ≤ 360°");
+        assert_eq!(AXIAL_STIFFNESS.describe(), "≥ 0 and ≤ 1e7 N/m");
+        assert_eq!(RTOL.describe(), "≥ 1e-12 and ≤ 1");
+        assert_eq!(
+            KP_N_PER_M.either_sign().check(-1.5e6).unwrap_err(),
+            "must be ≥ -1000000 and ≤ 1000000 N/m, got -1500000"
+        );
+        assert_eq!(KP_N_PER_M.either_sign().check(-1e6), Ok(-1e6));
+        assert_eq!(
+            MODULES.check_integer(i64::MIN).unwrap_err(),
+            "must be an integer in 1..=1000, got -9223372036854775808"
+        );
+    }
+}
