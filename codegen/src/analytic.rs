@@ -1,5 +1,5 @@
 //! Small-θ series expansion: emits `pcc_fs_fc_<order>(u)`, which evaluates
-//! f_s(u) = sin√u/√u, f_c(u) = (1 − cos√u)/u and their u-derivatives (MODEL.md §2, §8).
+//! f_s(u) = sin√u/√u, f_c(u) = (1 − cos√u)/u and their u-derivatives (docs/model.md §2, §8).
 //!
 //! # Method
 //!

@@ -14,7 +14,7 @@ impl Id {
     }
 }
 
-/// The analytic functions of MODEL.md §2, as first-class nodes.
+/// The analytic functions of docs/model.md §2, as first-class nodes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Analytic {
     /// `f_s(u) = sin(√u)/√u`.

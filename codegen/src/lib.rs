@@ -3,7 +3,7 @@
 //! A small symbolic engine: a flat hash-consed [`expr::Arena`] whose constructors simplify,
 //! [`diff::Differentiator`] for derivatives of any order, [`program::schedule`] for common
 //! subexpressions, and [`emit`] writing Rust through syn/quote/prettyplease. The analytic
-//! functions `f_s`, `f_c` of MODEL.md §2 and their derivatives are nodes of their own,
+//! functions `f_s`, `f_c` of docs/model.md §2 and their derivatives are nodes of their own,
 //! evaluated by [`analytic`]'s series-or-closed-form code. [`model`] builds the PCC
 //! kinematics, barriers and joint terms of a robot's `Structure`. Robot files and the
 //! parameter layout are `softcbf-description`'s: the generator reads structures only.

@@ -1,4 +1,4 @@
-//! The robot model as symbolic expressions (MODEL.md §2–4) and its emission as a Rust file.
+//! The robot model as symbolic expressions (docs/model.md §2–4) and its emission as a Rust file.
 //! Structure decides the code; every number is read from the parameter vector at run time.
 
 use proc_macro2::{Literal, TokenStream};
@@ -142,7 +142,7 @@ pub fn build(structure: &Structure) -> SymbolicModel {
             arena.mul(length, fs),
         ];
 
-        // c_ij = f_s(u) · (L − r (a cos φ_j + b sin φ_j))  (MODEL.md §3).
+        // c_ij = f_s(u) · (L − r (a cos φ_j + b sin φ_j))  (docs/model.md §3).
         let mut corner_heights = Vec::with_capacity(corners);
         let mut margins = Vec::with_capacity(corners);
         for j in 0..corners {

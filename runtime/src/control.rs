@@ -1,4 +1,4 @@
-//! The safe controller of the paper (§III, MODEL.md §5): the PD+ nominal torque, one HOCBF
+//! The safe controller of the paper (§III, docs/model.md §5): the PD+ nominal torque, one HOCBF
 //! row `A τ ≥ b` per barrier, and the safety-filter QP, as one allocation-free [`tick`].
 //!
 //! For every barrier `b_k` (relative degree 2, class-K gains `p1`, `p2`) the HOCBF condition
@@ -182,7 +182,7 @@ pub enum InvalidState {
     MassMatrix,
     /// The model produced a non-finite barrier, torque or row.
     NonFiniteModel,
-    /// `q` or `q̇` lies outside the model's domain (a bend of more than two turns, an
+    /// `q` or `q̇` lies outside the model's domain (a bend beyond three quarters of a turn, an
     /// elongation beyond ten rest lengths, a speed above 100 m/s:
     /// `softcbf_description::domain`), where the model describes no robot.
     OutOfDomain,
@@ -358,7 +358,7 @@ fn size_problem(
 
 /// One control tick at state `(q, q̇)` toward `reference`: evaluates `M`, `h`, `G`, the
 /// barriers with their Jacobians and `J̇ q̇` (one [`model_terms`] call), the PD+ torque
-/// `τ_nom = M q̄̈ + h + G + K q̄ + D q̄̇ + K_P (q̄ − q) + K_D (q̄̇ − q̇)` (MODEL.md §5) and,
+/// `τ_nom = M q̄̈ + h + G + K q̄ + D q̄̇ + K_P (q̄ − q) + K_D (q̄̇ − q̇)` (docs/model.md §5) and,
 /// with the filter on, the HOCBF rows and the QP. The command lands in
 /// [`Controller::tau`] \[N\]; it is always finite (zero, the unactuated robot, when no
 /// computed command can be trusted, or when the state lies outside the model's domain).

@@ -1,4 +1,4 @@
-//! Rigid-plate dynamics `M q̈ + C q̇ + G + K q + D q̇ = τ` (MODEL.md §4) by recursive
+//! Rigid-plate dynamics `M q̈ + C q̇ + G + K q + D q̇ = τ` (docs/model.md §4) by recursive
 //! algorithms over the generated joint terms: CRBA for `M`, RNEA for `C q̇` and `G`.
 //!
 //! Why recursive rather than fully symbolic: each segment's transform, motion subspace `S_i`

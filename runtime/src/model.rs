@@ -39,7 +39,7 @@ pub struct Model {
     pub params: Vec<f64>,
     /// Spatial inertia of each module's plate about its tip-frame origin, tip coordinates.
     pub inertias: Vec<Inertia>,
-    /// Diagonal of `K` (MODEL.md §4): `κθ/d², κθ/d², κL` per module.
+    /// Diagonal of `K` (docs/model.md §4): `κθ/d², κθ/d², κL` per module.
     pub stiffness: Vec<f64>,
     /// Diagonal of `D`: `βθ/d², βθ/d², βL` per module.
     pub damping: Vec<f64>,

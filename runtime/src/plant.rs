@@ -3,7 +3,7 @@
 //!
 //! The state is `x = (q, q̇)`. The integrator's `W = I − γh J̃` uses the mechanical
 //! approximation `J̃ = [[0, I], [−M⁻¹K, −M⁻¹D]]` with `M` evaluated at each step's start: the
-//! stiff part of this plant is exactly its linear `K`, `D` (MODEL.md §7), and Coriolis,
+//! stiff part of this plant is exactly its linear `K`, `D` (docs/model.md §7), and Coriolis,
 //! gravity and `∂M/∂q` terms, which `J̃` omits, are not stiff (measurements in
 //! [`crate::integrator`]'s module docs). Nothing allocates after [`Plant::new`].
 //!

@@ -1,4 +1,4 @@
-//! A plain, hand-written evaluation of MODEL.md §2–4 (no generated code): segment transforms,
+//! A plain, hand-written evaluation of docs/model.md §2–4 (no generated code): segment transforms,
 //! corner heights, world poses, mass matrix, `C q̇` and gravity, with exact derivatives by jets.
 //!
 //! Derivatives come from forward-mode [`Jet`]s, which carry a value, its gradient over the
@@ -199,7 +199,7 @@ fn series(u: f64, first: usize) -> [f64; 3] {
     out
 }
 
-/// `(f_s(u), f_c(u))` of MODEL.md §2 as jets.
+/// `(f_s(u), f_c(u))` of docs/model.md §2 as jets.
 pub fn fs_fc<const N: usize>(u: Jet<N>) -> (Jet<N>, Jet<N>) {
     if u.v < SERIES_BELOW {
         let [s0, s1, s2] = series(u.v, 1);
@@ -225,7 +225,7 @@ pub type Vec3<T> = [T; 3];
 /// A 3×3 matrix, rows.
 pub type Mat3<T> = [[T; 3]; 3];
 
-/// `(R, t)` of one segment at `(Δx, Δy, δL)` (MODEL.md §2).
+/// `(R, t)` of one segment at `(Δx, Δy, δL)` (docs/model.md §2).
 pub fn segment<const N: usize>(
     module: &Module,
     dx: Jet<N>,
@@ -254,7 +254,7 @@ pub fn segment_value(module: &Module, q: [f64; 3]) -> (Mat3<f64>, Vec3<f64>) {
     (r.map(|row| row.map(|x| x.v)), t.map(|x| x.v))
 }
 
-/// Corner height `c_ij` of corner `j` (MODEL.md §3).
+/// Corner height `c_ij` of corner `j` (docs/model.md §3).
 pub fn corner_height<const N: usize>(
     module: &Module,
     corner: usize,
@@ -436,7 +436,7 @@ pub fn motion_subspace<const N: usize>(
     (s, bias)
 }
 
-/// Dynamics terms of MODEL.md §4 from the jets.
+/// Dynamics terms of docs/model.md §4 from the jets.
 #[derive(Clone, Debug)]
 pub struct Dynamics<const N: usize> {
     /// `M = Σ m Jvᵀ Jv + Jωᵀ R I Rᵀ Jω` (world frame).
@@ -525,7 +525,7 @@ pub fn dynamics<const N: usize>(robot: &Robot, q: &[f64; N], qd: &[f64; N]) -> D
     out
 }
 
-/// One module of the paper's simulation (MODEL.md §1) with the given COM offset.
+/// One module of the paper's simulation (docs/model.md §1) with the given COM offset.
 pub fn paper_module(com_offset: f64) -> Module {
     let (m, r) = (0.15, 0.05);
     let corners: Vec<f64> = (0..6).map(|j| j as f64 * PI / 3.0).collect();
@@ -610,7 +610,7 @@ pub fn sample_module(rng: &mut TestRng, module: &Module, theta: f64) -> [f64; 3]
     [dx, dy, dl]
 }
 
-/// The diagonals of `K` and `D` written from MODEL.md §4, module by module:
+/// The diagonals of `K` and `D` written from docs/model.md §4, module by module:
 /// `K_i = diag(κθ/d², κθ/d², κL)`, `D_i = diag(βθ/d², βθ/d², βL)`.
 pub fn stiffness_and_damping(robot: &Robot) -> (Vec<f64>, Vec<f64>) {
     let (mut stiffness, mut damping) = (Vec::new(), Vec::new());

@@ -194,7 +194,7 @@ fn matrix(value: &Value, what: &str, rows: usize, columns: usize) -> Vec<Vec<f64
     out
 }
 
-/// `|got − exact| ≤ 1e-12·scale + 1e-9·|exact|` (MODEL.md §8).
+/// `|got − exact| ≤ 1e-12·scale + 1e-9·|exact|` (docs/model.md §8).
 fn close(got: f64, exact: f64, scale: f64) -> bool {
     (got - exact).abs() <= 1e-12 * scale + 1e-9 * exact.abs()
 }
@@ -260,7 +260,7 @@ fn model_report_has_every_key_with_reference_values() {
     for k in 0..N {
         let module = &robot.modules[k / 3];
         let d2 = module.tendon_radius * module.tendon_radius;
-        // MODEL.md §4: K = diag(κθ/d², κθ/d², κL), D = diag(βθ/d², βθ/d², βL) per module.
+        // docs/model.md §4: K = diag(κθ/d², κθ/d², κL), D = diag(βθ/d², βθ/d², βL) per module.
         let (stiffness, damping_k) = if k % 3 == 2 {
             (module.axial_stiffness, module.axial_damping)
         } else {

@@ -111,7 +111,7 @@ fn hocbf_rows_predict_the_barrier_acceleration() {
 
 /// With the hold correction the rows predict the tick-averaged acceleration of a linearly
 /// implicit Euler step, `(M + ΔD + Δ²K) q̇⁺ = M q̇ + Δ (τ − h − G − K q)`, solved here by
-/// Gaussian elimination from `M`, `h + G` and the diagonals of MODEL.md §4.
+/// Gaussian elimination from `M`, `h + G` and the diagonals of docs/model.md §4.
 #[test]
 fn hold_corrected_rows_predict_the_implicit_euler_step() {
     let model = paper_model();

@@ -1,5 +1,5 @@
 //! The runtime rigid-plate dynamics (`M`, `h = C q̇`, `G`, `K`, `D`, forward dynamics)
-//! against the hand-written jets, finite differences and the identities of MODEL.md §4.
+//! against the hand-written jets, finite differences and the identities of docs/model.md §4.
 
 use rand::RngExt;
 use softcbf::dynamics::{
@@ -76,7 +76,7 @@ fn max_abs<'a>(x: impl IntoIterator<Item = &'a f64>) -> f64 {
     x.into_iter().fold(0.0, |m, v| m.max(v.abs()))
 }
 
-/// The MODEL.md §8 test `|got − exact| ≤ 1e-12·s + 1e-9·|exact|`, as a ratio to the bound.
+/// The docs/model.md §8 test `|got − exact| ≤ 1e-12·s + 1e-9·|exact|`, as a ratio to the bound.
 fn bound_ratio(got: f64, exact: f64, s: f64) -> f64 {
     (got - exact).abs() / (1e-12 * s + 1e-9 * exact.abs())
 }
@@ -383,7 +383,7 @@ fn stiffness_and_damping_diagonals() {
             );
         }
     }
-    // The paper's numbers (MODEL.md §7): κθ/d² = 6250 N/m, βθ/d² = 3125 N·s/m.
+    // The paper's numbers (docs/model.md §7): κθ/d² = 6250 N/m, βθ/d² = 3125 N·s/m.
     let paper = model_of(paper_robot(vec![paper_module(0.0), paper_module(0.0)]));
     assert!((paper.stiffness[0] - 6250.0).abs() < 1e-9 && (paper.damping[1] - 3125.0).abs() < 1e-9);
     let mut rng = softcbf_tests::rng(51);
@@ -545,7 +545,7 @@ fn check_forward_dynamics<const N: usize>(robot: Robot, seed: u64, trials: usize
     let model = model_of(robot.clone());
     let mut ws = DynamicsWorkspace::new(&model);
     let mut rng = softcbf_tests::rng(seed);
-    // K and D written from MODEL.md §4, not read from the model.
+    // K and D written from docs/model.md §4, not read from the model.
     let (k_diag, d_diag) = stiffness_and_damping(&robot);
     for trial in 0..trials {
         let (q, qd) = sample_state::<N>(&mut rng, &robot);
@@ -592,7 +592,7 @@ fn check_forward_dynamics<const N: usize>(robot: Robot, seed: u64, trials: usize
     }
 }
 
-/// `M q̈ = τ − h − G − K q − D q̇` to 1e-12 relative, with `K`, `D` from MODEL.md §4.
+/// `M q̈ = τ − h − G − K q − D q̇` to 1e-12 relative, with `K`, `D` from docs/model.md §4.
 #[test]
 fn forward_dynamics_satisfies_equation_of_motion() {
     check_forward_dynamics::<3>(paper_robot(modules(1, 0.01)), 71, 300);

@@ -1,4 +1,4 @@
-//! Tests of the servo ↔ `q` and `τ` ↔ tension ↔ current mapping (MODEL.md §6) against hand
+//! Tests of the servo ↔ `q` and `τ` ↔ tension ↔ current mapping (docs/model.md §6) against hand
 //! computations on the example hardware robot, and round trips.
 
 use std::f64::consts::PI;

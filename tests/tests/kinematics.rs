@@ -48,7 +48,7 @@ fn sample_state<const N: usize>(rng: &mut TestRng, robot: &Robot) -> ([f64; N], 
     (q, qd)
 }
 
-/// The MODEL.md §8 acceptance test: `|got − exact| ≤ 1e-12·s + 1e-9·|exact|`. Returns the
+/// The docs/model.md §8 acceptance test: `|got − exact| ≤ 1e-12·s + 1e-9·|exact|`. Returns the
 /// error in units of the bound.
 fn bound_ratio(got: f64, exact: f64, s: f64) -> f64 {
     (got - exact).abs() / (1e-12 * s + 1e-9 * exact.abs())

@@ -9,7 +9,7 @@ use softcbf::plot::{
 };
 use softcbf::record::{Record, Row};
 
-/// The paper's simulation set point (MODEL.md §7).
+/// The paper's simulation set point (docs/model.md §7).
 const SET_POINT: [f64; 6] = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
 
 fn out_dir(name: &str) -> PathBuf {
@@ -20,7 +20,7 @@ fn out_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// Barriers of one module (MODEL.md §3) for the paper's geometry: corner heights above
+/// Barriers of one module (docs/model.md §3) for the paper's geometry: corner heights above
 /// the bottom plate minus the margin.
 fn module_barriers(q: &[f64]) -> [f64; 6] {
     let (l0, d, r, margin) = (0.1, 0.04, 0.05, 0.005);

@@ -315,7 +315,7 @@ mod tests {
         assert!((a - b).abs() <= 1e-14 * b.abs().max(1e-300), "{a} != {b}");
     }
 
-    /// The numbers of MODEL.md §1, written here independently of the parser's defaults.
+    /// The numbers of docs/model.md §1, written here independently of the parser's defaults.
     #[track_caller]
     fn assert_paper_module(m: &Module) {
         assert_eq!(m.rest_length, 0.1);

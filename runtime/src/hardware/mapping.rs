@@ -1,5 +1,5 @@
 //! Servo readings ↔ generalized coordinates, and generalized forces ↔ tendon tensions ↔
-//! motor currents (MODEL.md §6), for robots with three local tendons per module.
+//! motor currents (docs/model.md §6), for robots with three local tendons per module.
 //!
 //! Per module `i` with tendon matrix `A_i` (columns `(cos ψ_k, sin ψ_k, −1)`):
 //!

@@ -2,7 +2,7 @@
 //! that thins long series, and axis ranges with their tick precision.
 
 /// Legend names of the coordinates: `Δx₁, Δy₁, δL₁, Δx₂, …` when `n` is a multiple of 3
-/// (MODEL.md §1), else `q0, q1, …`.
+/// (docs/model.md §1), else `q0, q1, …`.
 pub fn coordinate_labels(n: usize) -> Vec<String> {
     if n == 0 || !n.is_multiple_of(3) {
         return (0..n).map(|k| format!("q{k}")).collect();

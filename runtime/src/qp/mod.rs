@@ -1,4 +1,4 @@
-//! Safety-filter QP of the paper (eq. 16, MODEL.md §5): `min ½‖τ − τ_nom‖² s.t. A τ ≥ b`,
+//! Safety-filter QP of the paper (eq. 16, docs/model.md §5): `min ½‖τ − τ_nom‖² s.t. A τ ≥ b`,
 //! solved every tick by a dual active-set fast path with clarabel as reference and fallback.
 //!
 //! Every row is scaled to unit norm first, so tolerances, slacks and
