@@ -12,6 +12,8 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use rand::rngs::Xoshiro256PlusPlus;
+use rand::{RngExt, SeedableRng};
 use softcbf::dynamics::{
     BarrierTerms, DynamicsWorkspace, bias_and_gravity, forward_dynamics, mass_matrix, model_terms,
     update_joints,
@@ -23,32 +25,26 @@ use softcbf_generated::paper_sim;
 /// Number of states cycled through.
 const STATES: usize = 64;
 
-/// Deterministic pseudo-random numbers in [0, 1) (xorshift), no extra dependency.
-struct Xorshift(u64);
-
-impl Xorshift {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// `STATES` pairs `(q, q̇)` for `model`: bend θ in [0, 2] rad in a random direction,
 /// `δL` in [−0.03, 0.03] m, `q̇` in [−0.2, 0.2].
 fn states(model: &Model) -> Vec<(Vec<f64>, Vec<f64>)> {
-    let mut rng = Xorshift(0x2545_f491_4f6c_dd1d);
+    let mut rng: Xoshiro256PlusPlus = SeedableRng::seed_from_u64(0x2545_f491_4f6c_dd1d);
     (0..STATES)
         .map(|_| {
             let mut q = Vec::with_capacity(model.nq());
             for module in &model.robot.modules {
-                let theta = 2.0 * rng.next();
-                let alpha = std::f64::consts::TAU * rng.next();
+                let theta = 2.0 * rng.random::<f64>();
+                let alpha = std::f64::consts::TAU * rng.random::<f64>();
                 let r = theta * module.tendon_radius;
-                q.extend([r * alpha.cos(), r * alpha.sin(), 0.06 * rng.next() - 0.03]);
+                q.extend([
+                    r * alpha.cos(),
+                    r * alpha.sin(),
+                    0.06 * rng.random::<f64>() - 0.03,
+                ]);
             }
-            let qd = (0..model.nq()).map(|_| 0.4 * rng.next() - 0.2).collect();
+            let qd = (0..model.nq())
+                .map(|_| 0.4 * rng.random::<f64>() - 0.2)
+                .collect();
             (q, qd)
         })
         .collect()

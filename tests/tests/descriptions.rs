@@ -6,6 +6,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use proptest::prelude::*;
+use rand::RngExt;
 use serde_json::Value;
 use softcbf::control::{
     Controller, ControllerSettings, InvalidState, Reference, TickStatus, scaled_identity, tick,
@@ -19,28 +20,10 @@ use softcbf_description::domain;
 use softcbf_description::limits::{self, Limit};
 use softcbf_description::robot::Robot;
 use softcbf_description::toml_file::{self, FileError};
+use softcbf_tests::TestRng;
 
 // ---------------------------------------------------------------------------------------
 // Helpers.
-
-/// A small deterministic generator (xorshift64*), so that the combinations are the same
-/// on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-    fn flip(&mut self) -> bool {
-        self.next() & 1 == 1
-    }
-}
 
 /// The lowest value `limit` allows (a tiny positive number for `> 0`).
 fn lowest(limit: &Limit) -> f64 {
@@ -132,7 +115,7 @@ enum Pick {
 }
 
 /// A robot file with every number at an end of its range, as `pick` chooses.
-fn extreme_robot(modules: usize, corners: &str, pick: Pick, rng: &mut Rng) -> String {
+fn extreme_robot(modules: usize, corners: &str, pick: Pick, rng: &mut TestRng) -> String {
     let mut choose = |module: usize, name: &str| -> bool {
         let length = matches!(name, "rest_length" | "tendon_radius" | "corner_radius");
         match pick {
@@ -141,7 +124,7 @@ fn extreme_robot(modules: usize, corners: &str, pick: Pick, rng: &mut Rng) -> St
             Pick::Alternate => module % 2 == 1,
             Pick::LongAndLight => length,
             Pick::ShortAndHeavy => !length,
-            Pick::Random => rng.flip(),
+            Pick::Random => rng.random::<bool>(),
         }
     };
     let gravity: Vec<String> = (0..3)
@@ -181,24 +164,24 @@ fn extreme_robot(modules: usize, corners: &str, pick: Pick, rng: &mut Rng) -> St
 /// States at the corners of the domain of `robot`: each module bent by (just under) the
 /// largest bend in one of several directions, or straight, or barely bent (the small-θ
 /// series), elongated or compressed by ten rest lengths; velocities at ±100 m/s.
-fn corner_states(robot: &Robot, rng: &mut Rng, count: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
+fn corner_states(robot: &Robot, rng: &mut TestRng, count: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
     let mut states = Vec::new();
     for k in 0..count {
         let mut q = Vec::new();
         let mut qd = Vec::new();
         for module in &robot.modules {
             let full = domain::MAX_BEND_RAD * module.tendon_radius * (1.0 - 1e-12);
-            let bend = match (k + rng.below(4)) % 4 {
+            let bend = match (k + rng.random_range(0..4)) % 4 {
                 0 => [full, 0.0],
                 1 => [-full * FRAC_1_SQRT_2, full * FRAC_1_SQRT_2],
                 2 => [0.0, 0.0],
                 _ => [1e-9 * module.tendon_radius, 0.0],
             };
             let stretch = domain::MAX_ELONGATION_RATIO * module.rest_length;
-            let elongation = [stretch, -stretch, 0.0][rng.below(3)];
+            let elongation = [stretch, -stretch, 0.0][rng.random_range(0..3)];
             q.extend([bend[0], bend[1], elongation]);
             for _ in 0..3 {
-                qd.push([domain::MAX_SPEED, -domain::MAX_SPEED, 0.0][rng.below(3)]);
+                qd.push([domain::MAX_SPEED, -domain::MAX_SPEED, 0.0][rng.random_range(0..3)]);
             }
         }
         assert!(
@@ -212,12 +195,12 @@ fn corner_states(robot: &Robot, rng: &mut Rng, count: usize) -> Vec<(Vec<f64>, V
 
 /// Settings at the ends of their ranges: the stiffest gains, the robot's barrier gains,
 /// the hold correction of the slowest loop.
-fn extreme_settings(model: &Model, rng: &mut Rng) -> ControllerSettings {
+fn extreme_settings(model: &Model, rng: &mut TestRng) -> ControllerSettings {
     let nq = model.nq();
     let mut settings = ControllerSettings::paper(model);
-    settings.kp = scaled_identity(nq, end(&limits::KP_N_PER_M, rng.flip()));
-    settings.kd = scaled_identity(nq, end(&limits::KD_N_S_PER_M, rng.flip()));
-    settings.hold_correction = if rng.flip() {
+    settings.kp = scaled_identity(nq, end(&limits::KP_N_PER_M, rng.random::<bool>()));
+    settings.kd = scaled_identity(nq, end(&limits::KD_N_S_PER_M, rng.random::<bool>()));
+    settings.hold_correction = if rng.random::<bool>() {
         limits::CONTROL_PERIOD_S.max
     } else {
         0.0
@@ -231,7 +214,7 @@ fn extreme_settings(model: &Model, rng: &mut Rng) -> ControllerSettings {
 /// at another corner with the largest acceleration the waypoint spacing allows.
 #[test]
 fn the_ranges_keep_the_model_and_the_tick_finite() {
-    let mut rng = Rng(0x5EED_CBF0_0009);
+    let mut rng = softcbf_tests::rng(0x5EED_CBF0_0009);
     let picks = [
         Pick::Low,
         Pick::High,
