@@ -464,6 +464,20 @@ impl SymbolicModel {
         };
         push("barriers", emit_function(&self.arena, &spec));
 
+        // The argument groups the three term functions share.
+        let state_args = quote!(p: &[f64; NP], q: &[f64; NQ], qd: &[f64; NQ]);
+        let joint_args = quote!(
+            rotation: &mut [[[f64; 3]; 3]; N_MODULES],
+            translation: &mut [[f64; 3]; N_MODULES],
+            motion_subspace: &mut [[[f64; 3]; 6]; N_MODULES],
+            bias_acceleration: &mut [[f64; 6]; N_MODULES]
+        );
+        let barrier_args = quote!(
+            barriers: &mut [f64; NB],
+            jacobian: &mut [[f64; NQ]; NB],
+            jdot_qd: &mut [f64; NB]
+        );
+
         // Barriers with Jacobian rows and J̇q̇.
         let barrier_outputs = self.barrier_term_outputs();
         let spec = FunctionSpec {
@@ -472,14 +486,7 @@ impl SymbolicModel {
                 " Every barrier `b` \\[m\\], its gradient row `J = ∂b/∂q` and `J̇q̇ = q̇ᵀ ∇²b q̇`."
                     .into(),
             ],
-            args: quote!(
-                p: &[f64; NP],
-                q: &[f64; NQ],
-                qd: &[f64; NQ],
-                barriers: &mut [f64; NB],
-                jacobian: &mut [[f64; NQ]; NB],
-                jdot_qd: &mut [f64; NB]
-            ),
+            args: quote!(#state_args, #barrier_args),
             inputs: self.bindings(true),
             outputs: barrier_outputs.clone(),
             epilogue: TokenStream::new(),
@@ -495,15 +502,7 @@ impl SymbolicModel {
                 " `S_i` (6×3; rows ω then v, in tip coordinates, so the tip's body twist relative".into(),
                 " to the segment base is `S_i q̇_i`) and `c_J,i = Ṡ_i q̇_i` (derivative in tip coordinates).".into(),
             ],
-            args: quote!(
-                p: &[f64; NP],
-                q: &[f64; NQ],
-                qd: &[f64; NQ],
-                rotation: &mut [[[f64; 3]; 3]; N_MODULES],
-                translation: &mut [[f64; 3]; N_MODULES],
-                motion_subspace: &mut [[[f64; 3]; 6]; N_MODULES],
-                bias_acceleration: &mut [[f64; 6]; N_MODULES]
-            ),
+            args: quote!(#state_args, #joint_args),
             inputs: self.bindings(true),
             outputs: joint_outputs.clone(),
             epilogue: TokenStream::new(),
@@ -519,18 +518,7 @@ impl SymbolicModel {
                 " [`joint_terms`] and of [`barrier_terms`], same layouts, every shared term".into(),
                 " (segment kinematics, `f_s`, `f_c` and their derivatives) computed once.".into(),
             ],
-            args: quote!(
-                p: &[f64; NP],
-                q: &[f64; NQ],
-                qd: &[f64; NQ],
-                rotation: &mut [[[f64; 3]; 3]; N_MODULES],
-                translation: &mut [[f64; 3]; N_MODULES],
-                motion_subspace: &mut [[[f64; 3]; 6]; N_MODULES],
-                bias_acceleration: &mut [[f64; 6]; N_MODULES],
-                barriers: &mut [f64; NB],
-                jacobian: &mut [[f64; NQ]; NB],
-                jdot_qd: &mut [f64; NB]
-            ),
+            args: quote!(#state_args, #joint_args, #barrier_args),
             inputs: self.bindings(true),
             outputs: joint_outputs.into_iter().chain(barrier_outputs).collect(),
             epilogue: TokenStream::new(),

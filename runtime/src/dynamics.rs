@@ -228,12 +228,18 @@ pub fn model_terms(
     );
     prepare_joints(model, ws);
     crba(ws);
+    bias_gravity_sum(model, ws, qd);
+    Ok(())
+}
+
+/// `h` by one RNEA pass, `G` from the composite inertias, and `h + G`.
+#[inline]
+fn bias_gravity_sum(model: &Model, ws: &mut DynamicsWorkspace, qd: &[f64]) {
     newton_euler(model, ws, qd, Vector3::zeros(), Output::Bias);
     gravity_from_composites(model, ws);
     for ((sum, h), g) in ws.nonlinear.iter_mut().zip(&ws.bias).zip(&ws.gravity) {
         *sum = h + g;
     }
-    Ok(())
 }
 
 /// Evaluates the generated joint terms at `(q, q̇)` (`nq` entries each, \[m\], \[m/s\]), the
@@ -434,11 +440,7 @@ pub fn bias_and_gravity(
 ) -> Result<(), DynamicsError> {
     check_workspace(model, ws)?;
     expect_len("q̇", model.nq(), qd.len())?;
-    newton_euler(model, ws, qd, Vector3::zeros(), Output::Bias);
-    gravity_from_composites(model, ws);
-    for ((sum, h), g) in ws.nonlinear.iter_mut().zip(&ws.bias).zip(&ws.gravity) {
-        *sum = h + g;
-    }
+    bias_gravity_sum(model, ws, qd);
     Ok(())
 }
 
