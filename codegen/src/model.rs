@@ -300,7 +300,7 @@ impl SymbolicModel {
     /// `S` is `∂V/∂q̇` and `c_J` the time derivative of `V` at `q̈ = 0`.
     pub fn joint_exprs(&mut self, i: usize) -> ([[Id; 3]; 6], [Id; 6]) {
         let m = &self.modules[i];
-        let (qd, rotation, translation, [a, b, u]) = (m.qd, m.rotation, m.translation, m.bend);
+        let (qd, translation, [a, b, u]) = (m.qd, m.translation, m.bend);
         let arena = &mut self.arena;
         let a_rate = self.tangent.tangent(arena, a);
         let b_rate = self.tangent.tangent(arena, b);
@@ -334,10 +334,31 @@ impl SymbolicModel {
             .iter()
             .map(|&t| self.tangent.tangent(&mut self.arena, t))
             .collect();
-        for r in 0..3 {
-            let left: Vec<Id> = (0..3).map(|s| rotation[s][r]).collect();
-            twist[3 + r] = self.arena.dot(&left, &translation_rate);
-        }
+        // v = Rᵀ ṫ = ṗ + ω × p with p = Rᵀ t = (−t_x, −t_y, t_z): the tip's origin seen
+        // from the tip frame (f_s² + u f_c² = 2 f_c gives the closed form), so no product
+        // with R is needed.
+        let arena = &mut self.arena;
+        let [w0, w1, w2] = angular;
+        let [t0, t1, t2] = translation;
+        let [r0, r1, r2] = [
+            translation_rate[0],
+            translation_rate[1],
+            translation_rate[2],
+        ];
+        let mut cross = |x: Id, y: Id, z: Id, w: Id| {
+            let xy = arena.mul(x, y);
+            let zw = arena.mul(z, w);
+            arena.add(xy, zw)
+        };
+        let vx = cross(w1, t2, w2, t1);
+        let vy = cross(w2, t0, w0, t2);
+        let vy = arena.neg(vy);
+        let wx_ty = arena.mul(w0, t1);
+        let wy_tx = arena.mul(w1, t0);
+        let vz = arena.sub(wy_tx, wx_ty);
+        twist[3] = arena.sub(vx, r0);
+        twist[4] = arena.sub(vy, r1);
+        twist[5] = arena.add(r2, vz);
         let mut subspace = [[self.arena.constant(0.0); 3]; 6];
         for (r, row) in subspace.iter_mut().enumerate() {
             for (k, entry) in row.iter_mut().enumerate() {
