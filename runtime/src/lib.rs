@@ -11,7 +11,7 @@
 //! | [`qp`] | the safety-filter QP: dual active set, clarabel as reference and fallback |
 //! | [`integrator`] | adaptive integrators of the plant between ticks (Rosenbrock-W) |
 //! | [`plant`] | the simulated robot: the dynamics under a held command |
-//! | [`reference`] | what the controller tracks: set points and minimum-jerk waypoints |
+//! | [`reference`](mod@reference) | what the controller tracks: set points and minimum-jerk waypoints |
 //! | [`scenario`] | scenario files: robot, initial state, reference, gains, period, duration |
 //! | [`sim`] | the closed-loop simulator: ticks on the sampled state, the plant in between |
 //! | [`record`] | a run's trajectory, one row per tick (CSV in and out) |

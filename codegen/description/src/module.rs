@@ -1,4 +1,4 @@
-//! One module of a robot file: every field declared once, in [`module_fields!`]'s table,
+//! One module of a robot file: every field declared once, in `module_fields!`'s table,
 //! with its Rust type, built-in default, file key, written form and check.
 //!
 //! From that table come the [`Module`] struct, the serde form of a `[[module]]` table (and
