@@ -254,6 +254,14 @@ pub fn update_joints(
     qd: &[f64],
 ) -> Result<(), DynamicsError> {
     check_state(model, ws, q, qd)?;
+    evaluate_joints(model, ws, q, qd);
+    Ok(())
+}
+
+/// The generated joint terms at `(q, q̇)` and what [`prepare_joints`] makes of them (sizes
+/// already checked).
+#[inline]
+fn evaluate_joints(model: &Model, ws: &mut DynamicsWorkspace, q: &[f64], qd: &[f64]) {
     model.generated.joint_terms(
         &model.params,
         q,
@@ -264,7 +272,6 @@ pub fn update_joints(
         &mut ws.bias_acceleration,
     );
     prepare_joints(model, ws);
-    Ok(())
 }
 
 /// The generated joint terms as nalgebra values, and the composite inertias tip to base:
@@ -548,16 +555,7 @@ pub fn forward_dynamics(
         qdd.fill(f64::NAN);
         return Err(DynamicsError::NonFinite);
     }
-    model.generated.joint_terms(
-        &model.params,
-        q,
-        qd,
-        &mut ws.rotation,
-        &mut ws.translation,
-        &mut ws.motion_subspace,
-        &mut ws.bias_acceleration,
-    );
-    prepare_joints(model, ws);
+    evaluate_joints(model, ws, q, qd);
     crba(ws);
     newton_euler(model, ws, qd, base_acceleration(model), Output::Nonlinear);
     if let Err(error) = factor_mass_matrix(ws) {
