@@ -98,6 +98,37 @@ impl Written {
     }
 }
 
+/// `left op right` for `op` one of `*`, `/`, negated as `-left op right` when `left` is an
+/// atom (exact: negation commutes with both) and as `-(left op right)` otherwise.
+fn times_or_over(mut left: Written, right: Written, op: TokenStream, negated: bool) -> Written {
+    if negated {
+        if left.precedence == Precedence::Atom {
+            let tokens = &left.tokens;
+            left = Written {
+                tokens: quote!(-#tokens),
+                precedence: Precedence::Unary,
+            };
+        } else {
+            let (l, r) = (
+                left.at_least(Precedence::Product),
+                right.right_of(Precedence::Product),
+            );
+            return Written {
+                tokens: quote!(-(#l #op #r)),
+                precedence: Precedence::Unary,
+            };
+        }
+    }
+    let (l, r) = (
+        left.at_least(Precedence::Product),
+        right.right_of(Precedence::Product),
+    );
+    Written {
+        tokens: quote!(#l #op #r),
+        precedence: Precedence::Product,
+    }
+}
+
 /// Which nodes get a statement of their own and which are written inside their one user.
 struct Plan<'a> {
     arena: &'a Arena,
@@ -239,58 +270,11 @@ impl Plan<'_> {
         {
             std::mem::swap(&mut left, &mut right);
         }
-        if negated {
-            if left.precedence == Precedence::Atom {
-                let tokens = &left.tokens;
-                left = Written {
-                    tokens: quote!(-#tokens),
-                    precedence: Precedence::Unary,
-                };
-            } else {
-                let (l, r) = (
-                    left.at_least(Precedence::Product),
-                    right.right_of(Precedence::Product),
-                );
-                return Written {
-                    tokens: quote!(-(#l * #r)),
-                    precedence: Precedence::Unary,
-                };
-            }
-        }
-        let (l, r) = (
-            left.at_least(Precedence::Product),
-            right.right_of(Precedence::Product),
-        );
-        Written {
-            tokens: quote!(#l * #r),
-            precedence: Precedence::Product,
-        }
+        times_or_over(left, right, quote!(*), negated)
     }
 
     fn quotient(&self, a: Id, b: Id, negated: bool) -> Written {
-        let mut left = self.read(a);
-        if negated {
-            if left.precedence == Precedence::Atom {
-                let tokens = &left.tokens;
-                left = Written {
-                    tokens: quote!(-#tokens),
-                    precedence: Precedence::Unary,
-                };
-            } else {
-                let l = left.at_least(Precedence::Product);
-                let r = self.read(b).right_of(Precedence::Product);
-                return Written {
-                    tokens: quote!(-(#l / #r)),
-                    precedence: Precedence::Unary,
-                };
-            }
-        }
-        let l = left.at_least(Precedence::Product);
-        let r = self.read(b).right_of(Precedence::Product);
-        Written {
-            tokens: quote!(#l / #r),
-            precedence: Precedence::Product,
-        }
+        times_or_over(self.read(a), self.read(b), quote!(/), negated)
     }
 
     /// The expression computing `id` from its operands.
