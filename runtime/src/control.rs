@@ -48,7 +48,7 @@ impl ControllerSettings {
         ControllerSettings {
             kp: scaled_identity(model.nq(), 5.0),
             kd: scaled_identity(model.nq(), 1.0),
-            barrier_gains: model.robot.barrier_gains,
+            barrier_gains: model.robot.barrier_gains(),
             filter: true,
             hold_correction: 0.0,
             input_limits: (Vec::new(), Vec::new()),
@@ -108,13 +108,7 @@ impl ControllerSettings {
 }
 
 /// `c·I` of size `n × n`, row-major.
-pub fn scaled_identity(n: usize, c: f64) -> Vec<f64> {
-    let mut out = vec![0.0; n * n];
-    for i in 0..n {
-        out[i * n + i] = c;
-    }
-    out
-}
+pub use softcbf_description::gains::scaled_identity;
 
 /// Why a controller could not be built.
 #[derive(Debug, thiserror::Error)]

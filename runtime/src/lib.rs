@@ -13,6 +13,7 @@
 //! | [`plant`] | the simulated robot: the dynamics under a held command |
 //! | [`reference`](mod@reference) | what the controller tracks: set points and minimum-jerk waypoints |
 //! | [`scenario`] | scenario files: robot, initial state, reference, gains, period, duration |
+//! | [`settings`] | which value of each setting a run uses and where it came from (command line > scenario > robot > built-in) |
 //! | [`sim`] | the closed-loop simulator: ticks on the sampled state, the plant in between |
 //! | [`record`] | a run's trajectory, one row per tick (CSV in and out) |
 //! | [`plot`] | figures of a run like the paper's Fig. 4 (PNG, SVG) |
@@ -62,5 +63,6 @@ pub mod qp;
 pub mod record;
 pub mod reference;
 pub mod scenario;
+pub mod settings;
 pub mod sim;
 pub mod spatial;

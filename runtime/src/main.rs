@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 use softcbf::cli::{check_number, load_robot, parse_coordinates, parse_velocities};
 use softcbf::exit;
@@ -12,8 +12,9 @@ use softcbf::hardware::cli::output_directory;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
-use softcbf::scenario::ScenarioFile;
-use softcbf::sim::{barriers_per_module, simulate};
+use softcbf::scenario::{Overrides, ScenarioFile};
+use softcbf::settings::GainOptions;
+use softcbf::sim::{barriers_per_module, settings_report, simulate};
 use softcbf_description::limits;
 
 #[derive(Parser)]
@@ -25,6 +26,66 @@ use softcbf_description::limits;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+/// Options of `softcbf simulate`. A setting given here wins over the scenario file, which
+/// wins over the robot file, which wins over the built-in default (`softcbf::settings`).
+#[derive(Args)]
+struct SimulateArgs {
+    /// Scenario file (default: the embedded scenarios/paper-sim.toml).
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Robot file (default: the scenario's robot, else the embedded paper robot).
+    #[arg(long)]
+    robot: Option<PathBuf>,
+    /// Set point `Δx,Δy,δL,…` (m), replacing the scenario's reference.
+    #[arg(long, allow_hyphen_values = true)]
+    set_point: Option<String>,
+    /// Simulated time (s).
+    #[arg(long, allow_negative_numbers = true)]
+    duration: Option<f64>,
+    /// Control period (s): the state is sampled and τ held for this long.
+    #[arg(long, allow_negative_numbers = true)]
+    control_period: Option<f64>,
+    /// Both HOCBF class-K gains p1 = p2 (1/s).
+    #[arg(long, allow_negative_numbers = true)]
+    p: Option<f64>,
+    /// HOCBF class-K gain p1 (1/s).
+    #[arg(long, allow_negative_numbers = true)]
+    p1: Option<f64>,
+    /// HOCBF class-K gain p2 (1/s).
+    #[arg(long, allow_negative_numbers = true)]
+    p2: Option<f64>,
+    /// Proportional gain K_P = kp·I (N/m).
+    #[arg(long, allow_negative_numbers = true)]
+    kp: Option<f64>,
+    /// Derivative gain K_D = kd·I (N·s/m).
+    #[arg(long, allow_negative_numbers = true)]
+    kd: Option<f64>,
+    /// Correct the HOCBF rows for the zero-order hold (scenarios/README.md).
+    #[arg(long, value_name = "on|off", value_parser = on_off)]
+    hold_correction: Option<bool>,
+    /// Run plain PD+ without the safety filter.
+    #[arg(long, conflicts_with = "compare")]
+    no_filter: bool,
+    /// Also run plain PD+ and draw it beside the filtered run.
+    #[arg(long)]
+    compare: bool,
+    /// Output directory.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
+    #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
+    barrier_threshold: f64,
+}
+
+/// `on` or `off`.
+fn on_off(text: &str) -> Result<bool, String> {
+    match text {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("`{text}`: give `on` or `off`")),
+    }
 }
 
 #[derive(Subcommand)]
@@ -43,26 +104,7 @@ enum Command {
     },
     /// Simulate the safe controller (default: the paper's scenario, with the plain PD+
     /// comparison) and write trajectories, summary.json and figures.
-    Simulate {
-        /// Scenario file (default: the embedded scenarios/paper-sim.toml).
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// Robot file (default: the scenario's robot, else the embedded paper robot).
-        #[arg(long)]
-        robot: Option<PathBuf>,
-        /// Run plain PD+ without the safety filter.
-        #[arg(long)]
-        no_filter: bool,
-        /// Also run plain PD+ and draw it beside the filtered run.
-        #[arg(long)]
-        compare: bool,
-        /// Output directory.
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-        /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
-        #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
-        barrier_threshold: f64,
-    },
+    Simulate(SimulateArgs),
     /// Emulate the robot's servos on a pseudo-terminal (prints the port to connect to).
     Emulate(softcbf::hardware::cli::EmulateArgs),
     /// Run the safe controller on the robot's servos (or on `softcbf emulate`).
@@ -101,22 +143,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         }
         Command::Emulate(args) => softcbf::hardware::cli::emulate(args, console),
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
-        Command::Simulate {
-            scenario,
-            robot,
-            no_filter,
-            compare,
-            out,
-            barrier_threshold,
-        } => run_simulation(
-            scenario,
-            robot,
-            no_filter,
-            compare,
-            &out,
-            barrier_threshold,
-            console,
-        ),
+        Command::Simulate(args) => run_simulation(args, console),
     }
 }
 
@@ -130,31 +157,70 @@ fn non_finite(value: &serde_json::Value) -> usize {
     }
 }
 
-fn run_simulation(
-    scenario: Option<PathBuf>,
-    robot: Option<PathBuf>,
-    no_filter: bool,
-    compare: bool,
-    out: &std::path::Path,
-    barrier_threshold: f64,
-    console: &mut Console,
-) -> Result<u8, String> {
+fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, String> {
     let threshold = check_number(
         "--barrier-threshold",
-        barrier_threshold,
+        args.barrier_threshold,
         &limits::BARRIER_THRESHOLD_M,
     )?;
-    let file = match &scenario {
+    let gains = GainOptions::checked(args.kp, args.kd, args.p, args.p1, args.p2)?;
+    let check = |name: &str, value: Option<f64>, limit| {
+        value.map(|v| check_number(name, v, limit)).transpose()
+    };
+    let duration = check("--duration", args.duration, &limits::DURATION_S)?;
+    let control_period = check(
+        "--control-period",
+        args.control_period,
+        &limits::CONTROL_PERIOD_S,
+    )?;
+    let file = match &args.scenario {
         Some(path) => ScenarioFile::load(path).map_err(|e| e.to_string())?,
         None => ScenarioFile::paper_sim(),
     };
-    let robot_path = robot.or_else(|| file.robot_path());
-    let robot = load_robot(robot_path.as_deref()).map_err(|e| e.to_string())?;
+    let robot = match &args.robot {
+        Some(path) => load_robot(Some(path)),
+        None => file
+            .load_robot()
+            .and_then(|robot| robot.map_or_else(|| load_robot(None), Ok)),
+    }
+    .map_err(|e| e.to_string())?;
     let model = Model::new(robot).map_err(|e| e.to_string())?;
-    let scenario = file.resolve(&model).map_err(|e| e.to_string())?;
+    let set_point = args
+        .set_point
+        .as_deref()
+        .map(|text| parse_coordinates("--set-point", text, &model.robot))
+        .transpose()?;
+    let overrides = Overrides {
+        gains,
+        set_point,
+        duration,
+        control_period,
+        filter: args.no_filter.then_some(false),
+        hold_correction: args.hold_correction,
+        compare: args.compare.then_some(true),
+    };
+    let scenario = file
+        .resolve_with(&model, &overrides)
+        .map_err(|e| e.to_string())?;
+    let filter = scenario.controller.filter;
+    if !filter && args.compare {
+        return Err(format!(
+            "--compare: the scenario runs without the safety filter (`filter = false` in {}), \
+             so it is itself the plain PD+ run; drop --compare, or turn the filter on",
+            scenario.file
+        ));
+    }
+    if !filter && scenario.compare {
+        eprintln!(
+            "note: no PD+ comparison: the run is itself plain PD+ (the scenario's `compare = \
+             true` applies to filtered runs)"
+        );
+    }
+    let compare = filter && scenario.compare;
+    let out = args.out.as_path();
     output_directory(out, "--out")?;
-    let filter = scenario.controller.filter && !no_filter;
-    let compare = filter && (scenario.compare || compare);
+    let settings = settings_report(&model, &scenario, filter);
+    console.say(&settings.line());
 
     let mut progress = Progress::new(if filter { "filter" } else { "PD+" });
     let main = simulate(&model, &scenario, filter, &mut |f| progress.update(f))

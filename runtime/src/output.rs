@@ -89,16 +89,16 @@ pub fn write_outputs(
 pub fn one_line(summary: &RunSummary) -> String {
     let counts = &summary.counts;
     let mut line = format!(
-        "{} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier {:.3e} m \
-         (module {}, corner {}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
+        "{} on {} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier \
+         {:.3e} m ({}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
         summary.scenario,
+        summary.robot,
         summary.controller,
         summary.duration,
         summary.wall_time,
         summary.real_time_factor,
         summary.min_barrier.value,
-        summary.min_barrier.module,
-        summary.min_barrier.corner,
+        summary.min_barrier.label,
         summary.min_barrier.t,
         summary.set_point_error,
         summary.max_abs_tau,

@@ -6,13 +6,11 @@
 //! ([`ScenarioFile::resolve`]); every error names the file, the line and the field. The
 //! format is documented in `scenarios/README.md`.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
-use nalgebra::{DMatrix, SymmetricEigen};
 use serde::Deserialize;
-use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use softcbf_description::domain;
+use softcbf_description::gains::{RawGain, gain};
 use softcbf_description::limits::{self, Limit, short};
 use softcbf_description::robot::Robot;
 use softcbf_description::toml_file::{Checker, FileError};
@@ -23,6 +21,7 @@ use crate::integrator::Tolerances;
 use crate::model::Model;
 use crate::qp::QpSettings;
 use crate::reference::ReferenceSpec;
+use crate::settings::{GainOptions, Gains, ScenarioGains, Source, Sourced, first, resolve_gains};
 
 /// Text of `scenarios/paper-sim.toml`, compiled in as the default scenario.
 pub const PAPER_SIM_SCENARIO: &str = include_str!("../../scenarios/paper-sim.toml");
@@ -48,6 +47,61 @@ pub struct Scenario {
     pub compare: bool,
     /// Integrator tolerances between ticks.
     pub tolerances: Tolerances,
+    /// The scenario file (`<embedded …>` for the built-in one).
+    pub file: String,
+    /// Where the layered settings came from.
+    pub sources: Sources,
+}
+
+/// Where a scenario's layered settings came from ([`crate::settings`]): the command line,
+/// the scenario file, the robot file (gains) or the built-in default.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sources {
+    /// `K_P`, `K_D`, `p1`, `p2` with their sources.
+    pub gains: Gains,
+    /// Of the control period.
+    pub control_period: Source,
+    /// Of the duration.
+    pub duration: Source,
+    /// Of the reference (a `--set-point` replaces the file's).
+    pub reference: Source,
+    /// Of the filter switch.
+    pub filter: Source,
+    /// Of the hold correction switch.
+    pub hold_correction: Source,
+    /// Of the comparison switch.
+    pub compare: Source,
+}
+
+/// What the command line changes in a scenario; each value is checked by the caller
+/// against the same range as the file's field ([`softcbf_description::limits`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overrides {
+    /// `--kp`, `--kd`, `--p`, `--p1`, `--p2`.
+    pub gains: GainOptions,
+    /// `--set-point` (replaces the file's reference; in the robot's state domain).
+    pub set_point: Option<Vec<f64>>,
+    /// `--duration` \[s\].
+    pub duration: Option<f64>,
+    /// `--control-period` \[s\].
+    pub control_period: Option<f64>,
+    /// `Some(false)` for `--no-filter`.
+    pub filter: Option<bool>,
+    /// `--hold-correction` / `--no-hold-correction`.
+    pub hold_correction: Option<bool>,
+    /// `Some(true)` for `--compare`.
+    pub compare: Option<bool>,
+}
+
+/// Why a scenario cannot run: a problem in its file, or in a command-line option.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// A field of the scenario file (file, line and field named).
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// A command-line option, named in the message.
+    #[error("{0}")]
+    Option(String),
 }
 
 /// A parsed scenario file whose sizes are not yet checked against a robot.
@@ -119,96 +173,6 @@ struct RawIntegrator {
     max_steps: Option<Spanned<i64>>,
 }
 
-/// A gain: a number (times the identity), a list (the diagonal) or a list of rows (the
-/// matrix). Read by a visitor so that a wrong type says which forms are allowed.
-#[derive(Clone, Debug)]
-enum RawGain {
-    Scalar(f64),
-    Diagonal(Vec<Spanned<f64>>),
-    Matrix(Vec<Spanned<Vec<Spanned<f64>>>>),
-}
-
-/// What [`RawGain`]'s visitor expects.
-const GAIN_FORMS: &str = "a number, a list (the diagonal) or a list of rows";
-
-impl<'de> Deserialize<'de> for RawGain {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct GainVisitor;
-        impl<'de> Visitor<'de> for GainVisitor {
-            type Value = RawGain;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str(GAIN_FORMS)
-            }
-            fn visit_f64<E: de::Error>(self, v: f64) -> Result<RawGain, E> {
-                Ok(RawGain::Scalar(v))
-            }
-            fn visit_i64<E: de::Error>(self, v: i64) -> Result<RawGain, E> {
-                Ok(RawGain::Scalar(v as f64))
-            }
-            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RawGain, E> {
-                Ok(RawGain::Scalar(v as f64))
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<RawGain, A::Error> {
-                let mut numbers = Vec::new();
-                let mut rows = Vec::new();
-                while let Some(entry) = seq.next_element::<Spanned<GainEntry>>()? {
-                    let span = entry.span();
-                    match entry.into_inner() {
-                        GainEntry::Number(v) => numbers.push(Spanned::new(span, v)),
-                        GainEntry::Row(row) => rows.push(Spanned::new(span, row)),
-                    }
-                    if !numbers.is_empty() && !rows.is_empty() {
-                        return Err(de::Error::custom(format!(
-                            "mixes numbers and rows; expected {GAIN_FORMS}"
-                        )));
-                    }
-                }
-                Ok(if rows.is_empty() {
-                    RawGain::Diagonal(numbers)
-                } else {
-                    RawGain::Matrix(rows)
-                })
-            }
-        }
-        deserializer.deserialize_any(GainVisitor)
-    }
-}
-
-/// An entry of a gain list: a number (of the diagonal) or a row.
-enum GainEntry {
-    Number(f64),
-    Row(Vec<Spanned<f64>>),
-}
-
-impl<'de> Deserialize<'de> for GainEntry {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct EntryVisitor;
-        impl<'de> Visitor<'de> for EntryVisitor {
-            type Value = GainEntry;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a number (an entry of the diagonal) or a row (a list of numbers)")
-            }
-            fn visit_f64<E: de::Error>(self, v: f64) -> Result<GainEntry, E> {
-                Ok(GainEntry::Number(v))
-            }
-            fn visit_i64<E: de::Error>(self, v: i64) -> Result<GainEntry, E> {
-                Ok(GainEntry::Number(v as f64))
-            }
-            fn visit_u64<E: de::Error>(self, v: u64) -> Result<GainEntry, E> {
-                Ok(GainEntry::Number(v as f64))
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<GainEntry, A::Error> {
-                let mut row = Vec::new();
-                while let Some(value) = seq.next_element::<Spanned<f64>>()? {
-                    row.push(value);
-                }
-                Ok(GainEntry::Row(row))
-            }
-        }
-        deserializer.deserialize_any(EntryVisitor)
-    }
-}
-
 /// Default control period \[s\] (the paper's simulation ticks at 1 kHz).
 pub const DEFAULT_CONTROL_PERIOD: f64 = 1e-3;
 /// Default duration \[s\].
@@ -262,122 +226,147 @@ impl ScenarioFile {
         })
     }
 
-    /// Checks every value and every size against `model` and builds the scenario.
+    /// Reads the robot file the scenario names (`None`: it names none, the caller uses the
+    /// embedded paper robot). A file that cannot be read is reported at the scenario's
+    /// `robot` field, with the path it was resolved to.
+    pub fn load_robot(&self) -> Result<Option<Robot>, FileError> {
+        let (Some(given), Some(path)) = (&self.raw.robot, self.robot_path()) else {
+            return Ok(None);
+        };
+        match crate::cli::load_robot(Some(&path)) {
+            Err(FileError::Io { source, .. }) => {
+                let c = Checker {
+                    text: &self.text,
+                    path: &self.path,
+                };
+                let resolved = std::path::absolute(&path).unwrap_or(path);
+                Err(c.invalid(
+                    &given.span(),
+                    "robot",
+                    format!(
+                        "cannot read the robot file {} (`{}`, taken from this scenario's \
+                         folder): {source}",
+                        resolved.display(),
+                        given.get_ref()
+                    ),
+                ))
+            }
+            other => other.map(Some),
+        }
+    }
+
+    /// Checks every value and every size against `model` and builds the scenario as the
+    /// file (and the robot file, for the gains) says, without command-line overrides.
     pub fn resolve(&self, model: &Model) -> Result<Scenario, FileError> {
+        self.resolve_with(model, &Overrides::default())
+            .map_err(|error| match error {
+                ScenarioError::File(error) => error,
+                // Only an override yields an option error; there are none here.
+                ScenarioError::Option(message) => FileError::Invalid {
+                    path: self.path.clone(),
+                    line: 0,
+                    field: String::new(),
+                    message,
+                },
+            })
+    }
+
+    /// Checks every value and every size against `model` and builds the scenario, with
+    /// the command line's `overrides` taking precedence ([`crate::settings`]).
+    pub fn resolve_with(
+        &self,
+        model: &Model,
+        overrides: &Overrides,
+    ) -> Result<Scenario, ScenarioError> {
         let c = Checker {
             text: &self.text,
             path: &self.path,
         };
         let raw = &self.raw;
-        let number = |v: &Option<Spanned<f64>>, field: &str, limit: &Limit, default: f64| {
-            v.as_ref()
-                .map_or(Ok(default), |v| c.within(v, field, limit))
+        let number = |v: &Option<Spanned<f64>>, field: &str, limit: &Limit| {
+            v.as_ref().map(|v| c.within(v, field, limit)).transpose()
         };
-        let control_period = number(
-            &raw.control_period,
-            "control_period",
-            &limits::CONTROL_PERIOD_S,
+        let control_period = first(
+            [
+                (overrides.control_period, Source::CommandLine),
+                (
+                    number(
+                        &raw.control_period,
+                        "control_period",
+                        &limits::CONTROL_PERIOD_S,
+                    )?,
+                    Source::Scenario,
+                ),
+            ],
             DEFAULT_CONTROL_PERIOD,
-        )?;
-        let duration = number(
-            &raw.duration,
-            "duration",
-            &limits::DURATION_S,
+        );
+        let duration = first(
+            [
+                (overrides.duration, Source::CommandLine),
+                (
+                    number(&raw.duration, "duration", &limits::DURATION_S)?,
+                    Source::Scenario,
+                ),
+            ],
             DEFAULT_DURATION,
-        )?;
-        let duration_span = raw
-            .duration
-            .as_ref()
-            .or(raw.control_period.as_ref())
-            .map_or(0..0, Spanned::span);
-        if duration < control_period {
-            return Err(c.invalid(
-                &duration_span,
-                "duration",
-                format!(
-                    "{duration} s is shorter than the control period ({control_period} s): \
-                     not one tick would be simulated"
-                ),
-            ));
-        }
-        if duration / control_period > MAX_TICKS {
-            return Err(c.invalid(
-                &duration_span,
-                "duration",
-                format!(
-                    "{duration} s at a period of {control_period} s is {:.1e} ticks, more than {MAX_TICKS:.0e}",
-                    duration / control_period
-                ),
-            ));
-        }
+        );
+        self.check_ticks(&c, &duration, &control_period)?;
+        let period = control_period.value;
 
         let robot = &model.robot;
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
         let initial_qd = state(&c, raw.initial.qd.as_ref(), "initial.qd", robot, Velocities)?;
 
-        let reference = self.reference(&c, robot, control_period)?;
+        let reference = match &overrides.set_point {
+            Some(point) => {
+                Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::CommandLine)
+            }
+            None => Sourced::new(self.reference(&c, robot, period)?, Source::Scenario),
+        };
 
-        let (kp_default, kd_default) = PAPER_GAINS;
         let nq = model.nq();
-        let kp = gain(
-            &c,
-            raw.gains.kp.as_ref(),
-            "gains.kp",
-            nq,
-            kp_default,
-            &limits::KP_N_PER_M,
-        )?;
-        let kd = gain(
-            &c,
-            raw.gains.kd.as_ref(),
-            "gains.kd",
-            nq,
-            kd_default,
-            &limits::KD_N_S_PER_M,
-        )?;
-        let [p1_default, p2_default] = model.robot.barrier_gains;
-        let p1 = number(
-            &raw.gains.p1,
-            "gains.p1",
-            &limits::BARRIER_GAIN_PER_S,
-            p1_default,
-        )?;
-        let p2 = number(
-            &raw.gains.p2,
-            "gains.p2",
-            &limits::BARRIER_GAIN_PER_S,
-            p2_default,
-        )?;
+        let gains = &raw.gains;
+        let matrix = |raw: &Option<Spanned<RawGain>>, field: &str, limit: &Limit| {
+            raw.as_ref()
+                .map(|raw| gain(&c, raw, field, nq, limit))
+                .transpose()
+        };
+        let from_file = ScenarioGains {
+            kp: matrix(&gains.kp, "gains.kp", &limits::KP_N_PER_M)?,
+            kd: matrix(&gains.kd, "gains.kd", &limits::KD_N_S_PER_M)?,
+            p1: number(&gains.p1, "gains.p1", &limits::BARRIER_GAIN_PER_S)?,
+            p2: number(&gains.p2, "gains.p2", &limits::BARRIER_GAIN_PER_S)?,
+        };
+        let gains = resolve_gains(&overrides.gains, &from_file, robot);
 
         let mut tolerances = Tolerances::default();
         let integrator = &raw.integrator;
-        tolerances.rtol = number(
-            &integrator.rtol,
-            "integrator.rtol",
-            &limits::RTOL,
+        let or = |value: Option<f64>, default: f64| value.unwrap_or(default);
+        tolerances.rtol = or(
+            number(&integrator.rtol, "integrator.rtol", &limits::RTOL)?,
             tolerances.rtol,
-        )?;
-        tolerances.atol = number(
-            &integrator.atol,
-            "integrator.atol",
-            &limits::ATOL,
+        );
+        tolerances.atol = or(
+            number(&integrator.atol, "integrator.atol", &limits::ATOL)?,
             tolerances.atol,
-        )?;
-        tolerances.h_initial = number(
-            &integrator.h_initial,
-            "integrator.h_initial",
-            &limits::H_INITIAL_S,
+        );
+        tolerances.h_initial = or(
+            number(
+                &integrator.h_initial,
+                "integrator.h_initial",
+                &limits::H_INITIAL_S,
+            )?,
             tolerances.h_initial,
-        )?;
+        );
         if let Some(max_steps) = &integrator.max_steps {
             let steps = c.integer_within(max_steps, "integrator.max_steps", &limits::MAX_STEPS)?;
             tolerances.max_steps = usize::try_from(steps).unwrap_or(1);
         }
-        tolerances.h_max = control_period;
-        tolerances.h_initial = tolerances.h_initial.min(control_period);
+        tolerances.h_max = period;
+        tolerances.h_initial = tolerances.h_initial.min(period);
         if let Err(error) = tolerances.validate() {
             let span = integrator.h_initial.as_ref().map_or(0..0, Spanned::span);
-            return Err(c.invalid(&span, "integrator", error.to_string()));
+            return Err(c.invalid(&span, "integrator", error.to_string()).into());
         }
 
         let name = raw.name.clone().unwrap_or_else(|| {
@@ -386,29 +375,100 @@ impl ScenarioFile {
                 |s| s.to_string_lossy().into_owned(),
             )
         });
+        let filter = first(
+            [
+                (overrides.filter, Source::CommandLine),
+                (raw.filter, Source::Scenario),
+            ],
+            true,
+        );
+        let hold_correction = first(
+            [
+                (overrides.hold_correction, Source::CommandLine),
+                (raw.hold_correction, Source::Scenario),
+            ],
+            false,
+        );
+        let compare = first(
+            [
+                (overrides.compare, Source::CommandLine),
+                (raw.compare, Source::Scenario),
+            ],
+            false,
+        );
+        let mut controller = ControllerSettings {
+            kp: Vec::new(),
+            kd: Vec::new(),
+            barrier_gains: [0.0; 2],
+            filter: filter.value,
+            hold_correction: if hold_correction.value { period } else { 0.0 },
+            input_limits: (Vec::new(), Vec::new()),
+            qp: QpSettings::default(),
+        };
+        gains.apply(&mut controller);
         Ok(Scenario {
             name,
+            file: self.path.display().to_string(),
             initial_q,
             initial_qd,
-            reference,
-            controller: ControllerSettings {
-                kp,
-                kd,
-                barrier_gains: [p1, p2],
-                filter: raw.filter.unwrap_or(true),
-                hold_correction: if raw.hold_correction.unwrap_or(false) {
-                    control_period
-                } else {
-                    0.0
-                },
-                input_limits: (Vec::new(), Vec::new()),
-                qp: QpSettings::default(),
-            },
-            control_period,
-            duration,
-            compare: raw.compare.unwrap_or(false),
+            reference: reference.value,
+            controller,
+            control_period: period,
+            duration: duration.value,
+            compare: compare.value,
             tolerances,
+            sources: Sources {
+                gains,
+                control_period: control_period.source,
+                duration: duration.source,
+                reference: reference.source,
+                filter: filter.source,
+                hold_correction: hold_correction.source,
+                compare: compare.source,
+            },
         })
+    }
+
+    /// Checks that `duration` holds at least one tick of `period` and at most
+    /// [`MAX_TICKS`]; the error names the option or the field that gave the duration.
+    fn check_ticks(
+        &self,
+        c: &Checker<'_>,
+        duration: &Sourced<f64>,
+        period: &Sourced<f64>,
+    ) -> Result<(), ScenarioError> {
+        let (duration_s, period_s) = (duration.value, period.value);
+        let from = |source: Source| match source {
+            Source::CommandLine => " (--control-period)".to_string(),
+            Source::BuiltIn => " (the default)".to_string(),
+            _ => String::new(),
+        };
+        let problem = if duration_s < period_s {
+            format!(
+                "{duration_s} s is shorter than the control period ({period_s} s{}): not one \
+                 tick would be simulated",
+                from(period.source)
+            )
+        } else if duration_s / period_s > MAX_TICKS {
+            format!(
+                "{duration_s} s at a period of {period_s} s{} is {:.1e} ticks, more than \
+                 {MAX_TICKS:.0e}",
+                from(period.source),
+                duration_s / period_s
+            )
+        } else {
+            return Ok(());
+        };
+        if duration.source == Source::CommandLine {
+            return Err(ScenarioError::Option(format!("--duration: {problem}")));
+        }
+        let span = self
+            .raw
+            .duration
+            .as_ref()
+            .or(self.raw.control_period.as_ref())
+            .map_or(0..0, Spanned::span);
+        Err(c.invalid(&span, "duration", problem).into())
     }
 
     fn reference(
@@ -549,102 +609,6 @@ fn sized<T>(
         field,
         format!("has {len} entries, the robot has {n} {what}"),
     ))
-}
-
-/// A gain matrix `nq × nq` (row-major) from a number, a diagonal or rows. A number and the
-/// diagonal lie in `limit`; a matrix has its diagonal in `limit`, every other entry within
-/// `±limit.max`, and a positive semidefinite symmetric part.
-fn gain(
-    c: &Checker<'_>,
-    raw: Option<&Spanned<RawGain>>,
-    field: &str,
-    nq: usize,
-    default: f64,
-    limit: &Limit,
-) -> Result<Vec<f64>, FileError> {
-    let Some(raw) = raw else {
-        return Ok(crate::control::scaled_identity(nq, default));
-    };
-    let span = raw.span();
-    match raw.get_ref() {
-        RawGain::Scalar(k) => {
-            let k = c.limited(*k, &span, field, "", limit)?;
-            Ok(crate::control::scaled_identity(nq, k))
-        }
-        RawGain::Diagonal(diagonal) => {
-            if diagonal.len() != nq {
-                return Err(c.invalid(
-                    &span,
-                    field,
-                    format!(
-                        "has {} entries, the robot has {nq} coordinates",
-                        diagonal.len()
-                    ),
-                ));
-            }
-            let diagonal = c.list_within(diagonal, field, limit)?;
-            let mut matrix = vec![0.0; nq * nq];
-            for (i, k) in diagonal.iter().enumerate() {
-                matrix[i * nq + i] = *k;
-            }
-            Ok(matrix)
-        }
-        RawGain::Matrix(rows) => {
-            if rows.len() != nq {
-                return Err(c.invalid(
-                    &span,
-                    field,
-                    format!(
-                        "has {} rows, expected {nq} (one per coordinate)",
-                        rows.len()
-                    ),
-                ));
-            }
-            let off_diagonal = limit.either_sign();
-            let mut matrix = vec![0.0; nq * nq];
-            for (i, row) in rows.iter().enumerate() {
-                let what = format!("row {}", i + 1);
-                sized(c, row, &format!("{field} {what}"), nq, "coordinates")?;
-                for (j, entry) in row.get_ref().iter().enumerate() {
-                    matrix[i * nq + j] = c.limited(
-                        *entry.get_ref(),
-                        &entry.span(),
-                        field,
-                        &format!("{what} entry {} ", j + 1),
-                        if i == j { limit } else { &off_diagonal },
-                    )?;
-                }
-            }
-            if let Some(message) = indefinite(&matrix, nq) {
-                return Err(c.invalid(&span, field, message));
-            }
-            Ok(matrix)
-        }
-    }
-}
-
-/// Why the symmetric part `(K + Kᵀ)/2` of a square matrix (row-major, `n × n`, finite
-/// entries) is not positive semidefinite, or `None` when it is (to rounding: eigenvalues
-/// down to `−1e-10·max|K_ij|` pass).
-fn indefinite(matrix: &[f64], n: usize) -> Option<String> {
-    let symmetric = DMatrix::from_fn(n, n, |i, j| 0.5 * (matrix[i * n + j] + matrix[j * n + i]));
-    let scale = matrix.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-    let Some(eigen) = SymmetricEigen::try_new(symmetric, f64::EPSILON, 10_000) else {
-        return Some("its eigenvalues could not be computed; give a diagonal instead".into());
-    };
-    let lowest = eigen
-        .eigenvalues
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, f64::min);
-    (lowest < -1e-10 * scale).then(|| {
-        format!(
-            "the symmetric part (K + Kᵀ)/2 has the eigenvalue {}; a gain matrix must be \
-             positive semidefinite (a negative eigenvalue pushes the robot away from the \
-             reference)",
-            short(lowest)
-        )
-    })
 }
 
 #[cfg(test)]

@@ -17,7 +17,11 @@ use crate::model::Model;
 use crate::plant::Plant;
 use crate::record::{Record, RecordError, Row};
 use crate::reference::ReferenceSignal;
+use crate::reference::ReferenceSpec;
 use crate::scenario::Scenario;
+use crate::settings::{
+    Described, IntegratorReport, SettingsReport, Source, Sourced, software, vector_text,
+};
 
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
@@ -170,6 +174,56 @@ pub struct RunSummary {
     pub real_time_factor: f64,
     /// Why the run ended early (`None`: it reached the duration).
     pub stopped: Option<String>,
+    /// Every setting the run used, with where it came from.
+    pub settings: SettingsReport,
+}
+
+/// Every setting a run of `scenario` on `model` uses, with the filter on or off, and where
+/// each came from.
+pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> SettingsReport {
+    let sources = &scenario.sources;
+    let robot = &model.robot;
+    let reference = match &scenario.reference {
+        ReferenceSpec::SetPoint(q) => format!("set point {}", vector_text(q)),
+        ReferenceSpec::Waypoints(points) => format!(
+            "{} waypoints from t = {} s to {} s",
+            points.len(),
+            points.first().map_or(0.0, |p| p.0),
+            points.last().map_or(0.0, |p| p.0)
+        ),
+    };
+    let filter_source = if filter == scenario.controller.filter {
+        sources.filter
+    } else {
+        Source::CommandLine
+    };
+    let tolerances = &scenario.tolerances;
+    SettingsReport {
+        software: software(),
+        robot: Described {
+            name: robot.name.clone(),
+            file: robot.source.display().to_string(),
+        },
+        scenario: Some(Described {
+            name: scenario.name.clone(),
+            file: scenario.file.clone(),
+        }),
+        filter: Sourced::new(filter, filter_source),
+        gains: sources.gains.report(model.nq()),
+        hold_correction: Sourced::new(
+            scenario.controller.hold_correction > 0.0,
+            sources.hold_correction,
+        ),
+        control_period: Sourced::new(scenario.control_period, sources.control_period),
+        duration: Some(Sourced::new(scenario.duration, sources.duration)),
+        reference: Sourced::new(reference, sources.reference),
+        integrator: Some(IntegratorReport {
+            rtol: tolerances.rtol,
+            atol: tolerances.atol,
+            h_initial: tolerances.h_initial,
+            max_steps: tolerances.max_steps,
+        }),
+    }
 }
 
 /// A finished run: its trajectory and summary.
@@ -340,6 +394,7 @@ pub fn simulate(
         integration_time: integration_time.as_secs_f64(),
         real_time_factor: t / wall_time.max(1e-12),
         stopped,
+        settings: settings_report(model, scenario, filter),
     };
     Ok(Run { record, summary })
 }

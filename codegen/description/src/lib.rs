@@ -16,6 +16,7 @@
 //! ```
 
 pub mod domain;
+pub mod gains;
 pub mod layout;
 pub mod limits;
 pub mod module;

@@ -17,6 +17,7 @@ use serde::Deserialize;
 use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
+use crate::gains::RawGain;
 use crate::limits;
 pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
@@ -42,8 +43,12 @@ pub struct Robot {
     pub source: PathBuf,
     /// Gravity vector in the world (= base) frame [m/s²].
     pub gravity: [f64; 3],
-    /// HOCBF class-K gains `p1`, `p2` [1/s].
-    pub barrier_gains: [f64; 2],
+    /// HOCBF class-K gains `p1`, `p2` [1/s] as the `[barrier]` table gives them (`None`:
+    /// not given; [`Robot::barrier_gains`] fills in [`DEFAULT_BARRIER_GAINS`]).
+    pub barrier: [Option<f64>; 2],
+    /// The nominal controller's gains as the `[gains]` table gives them: `K_P` [N/m] and
+    /// `K_D` [N·s/m], `nq × nq` row-major (`None`: not given).
+    pub gains: FileGains,
     /// Tendon routing.
     pub routing: Routing,
     /// The modules, base first.
@@ -51,6 +56,17 @@ pub struct Robot {
     /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
     /// reads and checks it (`softcbf::hardware::description`).
     pub hardware: Option<HardwareTable>,
+}
+
+/// `K_P` and `K_D` of a robot file's `[gains]` table, `nq × nq` row-major (`None`: not
+/// given). Whoever runs the robot picks the gains by one precedence (command line, then
+/// scenario, then robot file, then the built-in paper gains).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FileGains {
+    /// `K_P` [N/m].
+    pub kp: Option<Vec<f64>>,
+    /// `K_D` [N·s/m].
+    pub kd: Option<Vec<f64>>,
 }
 
 /// The `[hardware]` table of a robot file, unread: the file's text and where the table
@@ -102,6 +118,15 @@ impl Robot {
         }
     }
 
+    /// The HOCBF gains `[p1, p2]` [1/s]: the file's, else [`DEFAULT_BARRIER_GAINS`].
+    pub fn barrier_gains(&self) -> [f64; 2] {
+        let [p1, p2] = self.barrier;
+        [
+            p1.unwrap_or(DEFAULT_BARRIER_GAINS[0]),
+            p2.unwrap_or(DEFAULT_BARRIER_GAINS[1]),
+        ]
+    }
+
     /// Reads and validates a robot file.
     pub fn load(path: &Path) -> Result<Robot, RobotError> {
         let text = crate::toml_file::read(path, "robot file")?;
@@ -141,6 +166,7 @@ struct RobotFile {
     gravity: Option<Spanned<Vec<Spanned<f64>>>>,
     routing: Option<Routing>,
     barrier: Option<BarrierTable>,
+    gains: Option<GainsTable>,
     defaults: Option<ModuleTable>,
     module: Option<Spanned<Vec<ModuleTable>>>,
     modules: Option<Spanned<Count>>,
@@ -153,6 +179,13 @@ struct RobotFile {
 struct BarrierTable {
     p1: Option<Spanned<f64>>,
     p2: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GainsTable {
+    kp: Option<Spanned<RawGain>>,
+    kd: Option<Spanned<RawGain>>,
 }
 
 /// `modules = N`, with a pointed message for the typo `[[modules]]`.
@@ -202,15 +235,14 @@ impl Checker<'_> {
             }
             None => DEFAULT_GRAVITY,
         };
-        let mut barrier_gains = DEFAULT_BARRIER_GAINS;
-        if let Some(barrier) = &file.barrier {
-            let [p1, p2] = &mut barrier_gains;
-            for (gain, value, field) in [
-                (p1, &barrier.p1, "barrier.p1"),
-                (p2, &barrier.p2, "barrier.p2"),
-            ] {
+        let mut barrier = [None, None];
+        if let Some(table) = &file.barrier {
+            let [p1, p2] = &mut barrier;
+            for (gain, value, field) in
+                [(p1, &table.p1, "barrier.p1"), (p2, &table.p2, "barrier.p2")]
+            {
                 if let Some(v) = value {
-                    *gain = self.within(v, field, &limits::BARRIER_GAIN_PER_S)?;
+                    *gain = Some(self.within(v, field, &limits::BARRIER_GAIN_PER_S)?);
                 }
             }
         }
@@ -260,11 +292,24 @@ impl Checker<'_> {
             let own = self.written(table, &prefix)?;
             modules.push(self.resolve(&own, &defaults, &prefix)?);
         }
+        let nq = 3 * modules.len();
+        let mut gains = FileGains::default();
+        if let Some(table) = &file.gains {
+            for (slot, raw, field, limit) in [
+                (&mut gains.kp, &table.kp, "gains.kp", &limits::KP_N_PER_M),
+                (&mut gains.kd, &table.kd, "gains.kd", &limits::KD_N_S_PER_M),
+            ] {
+                if let Some(raw) = raw {
+                    *slot = Some(crate::gains::gain(self, raw, field, nq, limit)?);
+                }
+            }
+        }
         Ok(Robot {
             name,
             source: self.path.to_path_buf(),
             gravity,
-            barrier_gains,
+            barrier,
+            gains,
             routing: file.routing.unwrap_or(Routing::Local),
             modules,
             hardware: file.hardware.map(|table| HardwareTable {
@@ -353,7 +398,7 @@ mod tests {
         assert_eq!(robot.name, "paper-sim");
         assert_eq!(robot.source, PathBuf::from("<embedded>"));
         assert_eq!(robot.gravity, [0.0, 0.0, -9.81]);
-        assert_eq!(robot.barrier_gains, [10.0, 10.0]);
+        assert_eq!(robot.barrier_gains(), [10.0, 10.0]);
         assert_eq!(robot.routing, Routing::Local);
         assert_eq!(robot.modules.len(), 2);
         robot.modules.iter().for_each(assert_paper_module);
@@ -418,7 +463,7 @@ mod tests {
         let robot = parse("modules = 2").unwrap();
         assert_eq!(robot.name, "x");
         assert_eq!(robot.gravity, [0.0, 0.0, -9.81]);
-        assert_eq!(robot.barrier_gains, [10.0, 10.0]);
+        assert_eq!(robot.barrier_gains(), [10.0, 10.0]);
         assert_eq!(robot.routing, Routing::Local);
         assert_eq!(robot.modules.len(), 2);
         robot.modules.iter().for_each(assert_paper_module);
@@ -474,7 +519,7 @@ mod tests {
         // Integers are accepted where numbers are expected.
         let robot = parse("[barrier]\np1 = 3\n[[module]]\nrest_length = 1").unwrap();
         assert_eq!(
-            (robot.barrier_gains, robot.modules[0].rest_length),
+            (robot.barrier_gains(), robot.modules[0].rest_length),
             ([3.0, 10.0], 1.0)
         );
     }
@@ -798,8 +843,45 @@ mod tests {
             "got 1e308",
         );
         let robot = parse("[barrier]\np1 = 1e4\np2 = 1e-9\n[[module]]").unwrap();
-        assert_eq!(robot.barrier_gains, [1e4, 1e-9]);
+        assert_eq!(robot.barrier_gains(), [1e4, 1e-9]);
         assert_invalid("[barrier]\np2 = nan\n[[module]]", 2, "barrier.p2", "finite");
+    }
+
+    #[test]
+    fn controller_gains_take_a_number_a_diagonal_or_rows_and_are_checked() {
+        let robot = parse("[gains]\nkp = 8\nkd = [1, 2, 3]\n[[module]]").unwrap();
+        let kp = robot.gains.kp.as_deref().unwrap();
+        assert_eq!((kp[0], kp[1], kp[4], kp[8]), (8.0, 0.0, 8.0, 8.0));
+        let kd = robot.gains.kd.as_deref().unwrap();
+        assert_eq!((kd[0], kd[4], kd[8], kd[1]), (1.0, 2.0, 3.0, 0.0));
+        let none = parse("[[module]]").unwrap();
+        assert_eq!((none.gains.kp.as_ref(), none.barrier), (None, [None, None]));
+        assert_eq!(none.barrier_gains(), DEFAULT_BARRIER_GAINS);
+        assert_invalid(
+            "[gains]\nkp = -1\n[[module]]",
+            2,
+            "gains.kp",
+            "must be ≥ 0 and ≤ 1000000 N/m, got -1",
+        );
+        assert_invalid(
+            "[gains]\nkd = [1, 2]\n[[module]]",
+            2,
+            "gains.kd",
+            "has 2 entries, the robot has 3 coordinates",
+        );
+        assert_invalid(
+            "[[module]]\n[gains]\nkp = [[1, 3, 0], [3, 1, 0], [0, 0, 1]]\n",
+            3,
+            "gains.kp",
+            "has the eigenvalue -2",
+        );
+        let error = parse("[gains]\np1 = 3\n[[module]]")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("unknown field `p1`, expected `kp` or `kd`"),
+            "{error}"
+        );
     }
 
     #[test]

@@ -17,9 +17,14 @@ use crate::hardware::limits as servo;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::{self, RunSettings, RunSummary, StopReason, Verdict};
 use crate::hardware::signal;
+use crate::hardware::status_line::StatusLine;
 use crate::model::Model;
 use crate::output::Console;
 use crate::protocol::Bus;
+use crate::settings::{
+    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, resolve_gains,
+    software, vector_text,
+};
 
 /// Options of `softcbf emulate`.
 #[derive(Args, Debug)]
@@ -67,9 +72,9 @@ pub struct RunArgs {
     /// `softcbf emulate` printed).
     #[arg(long)]
     pub port: String,
-    /// Loop rate (Hz), 1 to 10000.
-    #[arg(long, default_value_t = 33.0, allow_negative_numbers = true)]
-    pub rate: f64,
+    /// Loop rate (Hz), 1 to 10000 (default: 33, the paper's).
+    #[arg(long, allow_negative_numbers = true)]
+    pub rate: Option<f64>,
     /// Lowest rate the loop may fall to (a slow bus) before it stops safely (Hz)
     /// (default: half of --rate).
     #[arg(long, allow_negative_numbers = true)]
@@ -80,9 +85,27 @@ pub struct RunArgs {
     /// Set point `Δx,Δy,δL,…` (m) (default: the robot file's hardware.set_point).
     #[arg(long, allow_hyphen_values = true)]
     pub set_point: Option<String>,
+    /// Proportional gain K_P = kp·I (N/m) (default: the robot file's `[gains] kp`, else 5).
+    #[arg(long, allow_negative_numbers = true)]
+    pub kp: Option<f64>,
+    /// Derivative gain K_D = kd·I (N·s/m) (default: the robot file's `[gains] kd`, else 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub kd: Option<f64>,
+    /// Both HOCBF class-K gains p1 = p2 (1/s) (default: the robot file's `[barrier]`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub p: Option<f64>,
+    /// HOCBF class-K gain p1 (1/s).
+    #[arg(long, allow_negative_numbers = true)]
+    pub p1: Option<f64>,
+    /// HOCBF class-K gain p2 (1/s).
+    #[arg(long, allow_negative_numbers = true)]
+    pub p2: Option<f64>,
     /// Plain PD+ without the safety filter.
     #[arg(long)]
     pub no_filter: bool,
+    /// No live status line on the terminal (it is drawn only when standard error is one).
+    #[arg(long)]
+    pub quiet: bool,
     /// Compute each command at the state read, not at the state predicted for when the
     /// command reaches the servos.
     #[arg(long)]
@@ -106,6 +129,9 @@ pub struct RunArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub max_errors: Option<i64>,
 }
+
+/// The loop rate of `softcbf run` when `--rate` is not given \[Hz\] (the paper's 33 Hz).
+pub const DEFAULT_RATE: f64 = 33.0;
 
 /// A robot file and its hardware, read and checked.
 fn load(path: &Path) -> Result<(Robot, Hardware), String> {
@@ -233,7 +259,10 @@ pub fn run_settings(
             as u32;
     }
     let default_set_point = hardware.set_point.clone();
-    let rate = check_number("--rate", args.rate, &limits::RATE_HZ)?;
+    let rate = match args.rate {
+        Some(rate) => check_number("--rate", rate, &limits::RATE_HZ)?,
+        None => DEFAULT_RATE,
+    };
     let set_point = match &args.set_point {
         Some(text) => parse_coordinates("--set-point", text, robot)?,
         None => default_set_point,
@@ -252,6 +281,8 @@ pub fn run_settings(
     }
     settings.filter = !args.no_filter;
     settings.predict = !args.no_prediction;
+    let options = GainOptions::checked(args.kp, args.kd, args.p, args.p1, args.p2)?;
+    settings.gains = Some(resolve_gains(&options, &ScenarioGains::default(), robot));
     settings.validate(3 * robot.modules.len())?;
     let threshold = check_number(
         "--barrier-threshold",
@@ -288,26 +319,28 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         .open()
         .map_err(|e| format!("--port: cannot open {}: {e}", args.port))?;
     let mut bus = Bus::new(port, Duration::from_secs_f64(hardware.reply_timeout));
-    let mut log = super::log::open(&args.out, &model, map.n_servos())?;
+    let log = super::log::open(&args.out, &model, map.n_servos())?;
+    let used = run_settings_report(&args, &robot, &hardware, &settings);
     console.say(&format!(
-        "softcbf run: `{}` on {} at {} bit/s, {} Hz (at least {} Hz), filter {}, prediction {}, \
-         bus watchdog {}, set point {:?}",
+        "softcbf run: `{}` on {} at {} bit/s, {} Hz (at least {} Hz), prediction {}, bus \
+         watchdog {}",
         robot.name,
         args.port,
         hardware.baud,
         settings.rate,
         settings.min_rate,
-        if settings.filter { "on" } else { "off" },
         if settings.predict { "on" } else { "off" },
         if settings.bus_watchdog > 0.0 {
             format!("{:.0} ms", settings.bus_watchdog * 1000.0)
         } else {
             "off".to_string()
         },
-        settings.set_point
     ));
+    console.say(&used.line());
+    let mut log = StatusLine::new(log, !args.quiet);
     let summary = run_loop::run(&model, &map, &mut bus, &settings, &mut log, stop)
         .map_err(|e| e.to_string())?;
+    let log = log.into_inner();
     report(&summary, threshold, console);
     let mut code = match summary.verdict(threshold) {
         Verdict::Safe => exit::OK,
@@ -320,7 +353,16 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
             exit::FAULT
         }
     };
-    match super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model) {
+    let written = write_summary(&args.out, &used, &settings.set_point, &summary, threshold)
+        .and_then(|path| {
+            super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model).map(
+                |mut files| {
+                    files.push(path);
+                    files
+                },
+            )
+        });
+    match written {
         Ok(files) => {
             let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
             console.say(&format!("wrote {}", names.join(", ")));
@@ -335,6 +377,113 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         code = exit::worst(code, exit::ERROR);
     }
     Ok(code)
+}
+
+/// Every setting of a run, with where it came from (command line, robot file, built-in).
+pub fn run_settings_report(
+    args: &RunArgs,
+    robot: &Robot,
+    hardware: &Hardware,
+    settings: &RunSettings,
+) -> SettingsReport {
+    let nq = 3 * robot.modules.len();
+    let gains = settings.gains.clone().unwrap_or_else(|| {
+        resolve_gains(&GainOptions::default(), &ScenarioGains::default(), robot)
+    });
+    let given = |option: bool| {
+        if option {
+            Source::CommandLine
+        } else {
+            Source::BuiltIn
+        }
+    };
+    let (reference_source, hold_source) = (
+        given(args.set_point.is_some()),
+        if hardware.hold_correction {
+            Source::RobotFile
+        } else {
+            Source::BuiltIn
+        },
+    );
+    SettingsReport {
+        software: software(),
+        robot: Described {
+            name: robot.name.clone(),
+            file: robot.source.display().to_string(),
+        },
+        scenario: None,
+        filter: Sourced::new(settings.filter, given(args.no_filter)),
+        gains: gains.report(nq),
+        hold_correction: Sourced::new(hardware.hold_correction, hold_source),
+        control_period: Sourced::new(1.0 / settings.rate, given(args.rate.is_some())),
+        duration: settings
+            .duration
+            .map(|d| Sourced::new(d, Source::CommandLine)),
+        reference: Sourced::new(
+            format!("set point {}", vector_text(&settings.set_point)),
+            if reference_source == Source::CommandLine {
+                Source::CommandLine
+            } else {
+                Source::RobotFile
+            },
+        ),
+        integrator: None,
+    }
+}
+
+/// Writes `dir/summary.json`: the settings, the verdict and the counts of a hardware run,
+/// with `controller` and `set_point` as `softcbf simulate` writes them.
+fn write_summary(
+    dir: &Path,
+    settings: &SettingsReport,
+    set_point: &[f64],
+    s: &RunSummary,
+    threshold: f64,
+) -> Result<PathBuf, String> {
+    let verdict = match s.verdict(threshold) {
+        Verdict::Safe => "safe".to_string(),
+        Verdict::Unsafe(why) => format!("unsafe: {why}"),
+        Verdict::Fault(why) => format!("fault: {why}"),
+    };
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let summary = serde_json::json!({
+        "controller": if settings.filter.value { "filter" } else { "pd" },
+        "robot": settings.robot.name,
+        "hardware": true,
+        "set_point": set_point,
+        "verdict": verdict,
+        "stopped": s.stop.to_string(),
+        "ticks": s.ticks,
+        "commands": s.commands,
+        "held": s.held,
+        "fallbacks": s.fallbacks,
+        "invalid_state": s.invalid,
+        "relaxed": s.relaxed,
+        "overruns": s.overruns,
+        "elapsed": s.elapsed,
+        "rate": s.rate(),
+        "min_barrier": {
+            "value": finite(s.min_barrier.value),
+            "label": s.min_barrier.label,
+            "t": s.min_barrier.t,
+        },
+        "clamps": { "low": s.clamps.low, "high": s.clamps.high },
+        "bus": {
+            "transactions": s.bus.transactions,
+            "replies": s.bus.replies,
+            "timeouts": s.bus.timeouts,
+            "crc_errors": s.bus.crc_errors,
+            "decode_errors": s.bus.decode_errors,
+            "wrong_id": s.bus.wrong_id,
+            "retries": s.bus.retries,
+        },
+        "torque_off": s.torque_off.iter().map(|(id, ok)| serde_json::json!({"id": id, "confirmed": ok})).collect::<Vec<_>>(),
+        "settings": settings,
+    });
+    let path = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
+    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path)
 }
 
 fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
@@ -398,4 +547,73 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
         Verdict::Fault(why) => format!("FAULT: {why}"),
     };
     console.say(&format!("verdict: {verdict}"));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Command {
+        #[command(flatten)]
+        run: RunArgs,
+    }
+
+    fn settings_of(options: &[&str]) -> Result<(RunSettings, SettingsReport), String> {
+        let robot = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/hardware-example.toml"
+        );
+        let mut args = vec!["run", "--robot", robot, "--port", "/dev/null"];
+        args.extend_from_slice(options);
+        let args = Command::try_parse_from(args)
+            .map_err(|e| e.to_string())?
+            .run;
+        let (robot, mut hardware) = load(&args.robot)?;
+        let (settings, _) = run_settings(&args, &robot, &mut hardware)?;
+        let report = run_settings_report(&args, &robot, &hardware, &settings);
+        Ok((settings, report))
+    }
+
+    #[test]
+    fn run_gains_come_from_the_robot_file_unless_the_command_line_gives_them() {
+        let (settings, report) = settings_of(&[]).unwrap();
+        let gains = settings.gains.unwrap();
+        assert_eq!(gains.p1, Sourced::new(20.0, Source::RobotFile));
+        assert_eq!(gains.kp.source, Source::RobotFile);
+        assert_eq!(
+            report.control_period,
+            Sourced::new(1.0 / 33.0, Source::BuiltIn)
+        );
+        assert_eq!(report.reference.source, Source::RobotFile);
+        assert_eq!(
+            report.hold_correction,
+            Sourced::new(true, Source::RobotFile)
+        );
+
+        let (settings, report) =
+            settings_of(&["--p", "15", "--kp", "8", "--rate", "20", "--no-filter"]).unwrap();
+        let gains = settings.gains.unwrap();
+        assert_eq!(gains.p1, Sourced::new(15.0, Source::CommandLine));
+        assert_eq!(gains.p2, Sourced::new(15.0, Source::CommandLine));
+        assert_eq!(gains.kp.value[7], 8.0);
+        assert_eq!(gains.kd.source, Source::RobotFile);
+        assert_eq!(
+            report.control_period,
+            Sourced::new(0.05, Source::CommandLine)
+        );
+        assert_eq!(report.filter, Sourced::new(false, Source::CommandLine));
+        let line = report.line();
+        assert!(line.contains("K_P = 8 (command line)"), "{line}");
+        assert!(line.contains("p2 = 15 (command line)"), "{line}");
+    }
+
+    #[test]
+    fn run_gains_are_checked_by_the_files_rules() {
+        let error = settings_of(&["--kd", "-3"]).err().unwrap();
+        assert!(error.starts_with("--kd: must be ≥ 0"), "{error}");
+        let error = settings_of(&["--p", "2", "--p2", "3"]).err().unwrap();
+        assert!(error.contains("either --p or --p1/--p2"), "{error}");
+    }
 }

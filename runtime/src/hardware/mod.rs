@@ -8,7 +8,8 @@
 //! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
 //! - [`servo_io`]: safe start, the per-tick sync read/write with retries, safe stop.
 //! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`run_settings`] what it
-//!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures.
+//!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures;
+//!   [`status_line`] the live line on the terminal.
 //! - [`signal`]: terminating signals as flags the loops poll; [`cli`]: the two subcommands' options.
 
 pub mod cli;
@@ -23,3 +24,4 @@ pub mod run_outcome;
 pub mod run_settings;
 pub mod servo_io;
 pub mod signal;
+pub mod status_line;

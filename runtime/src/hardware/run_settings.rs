@@ -1,9 +1,10 @@
 //! What one `softcbf run` does: its rate, minimum rate, duration, set point, filter,
-//! prediction and Bus Watchdog, with their defaults and the checks they must pass.
+//! prediction, Bus Watchdog and gains, with their defaults and the checks they must pass.
 
 use softcbf_description::limits::{self, Limit};
 
 use crate::hardware::limits as servo;
+use crate::settings::Gains;
 
 /// The shortest Bus Watchdog `softcbf run` arms by default \[s\].
 pub const DEFAULT_BUS_WATCHDOG_FLOOR: f64 = 0.1;
@@ -29,11 +30,14 @@ pub struct RunSettings {
     /// come for this long (a killed or crashed host); `0` leaves it off (firmware older
     /// than v38 has none). Default: [`RunSettings::default_bus_watchdog`].
     pub bus_watchdog: f64,
+    /// `K_P`, `K_D`, `p1`, `p2` with their sources; `None`: the robot file's, else the
+    /// built-in paper gains ([`crate::settings::resolve_gains`] without options).
+    pub gains: Option<Gains>,
 }
 
 impl RunSettings {
     /// `rate` toward `set_point` with the defaults: no duration, filter and prediction on,
-    /// `min_rate = rate / 2`, the default Bus Watchdog.
+    /// `min_rate = rate / 2`, the default Bus Watchdog, the robot file's gains.
     pub fn new(rate: f64, set_point: Vec<f64>) -> RunSettings {
         let min_rate = rate / 2.0;
         RunSettings {
@@ -44,6 +48,7 @@ impl RunSettings {
             filter: true,
             predict: true,
             bus_watchdog: RunSettings::default_bus_watchdog(min_rate),
+            gains: None,
         }
     }
 

@@ -1,0 +1,216 @@
+//! The live status line of `softcbf run` on a terminal: loop rate, lowest barrier, QP and
+//! bus fault counts, redrawn in place a few times a second from the rows the loop logs.
+//!
+//! It wraps the run's log ([`RunLog`]): every row goes to the log first, then updates the
+//! counts; drawing happens at most every [`REDRAW`] and only when standard error is a
+//! terminal. Nothing here touches the bus or the controller.
+
+use std::io::{IsTerminal, Write};
+use std::time::{Duration, Instant};
+
+use crate::hardware::log::RunLog;
+use crate::record::Row;
+
+/// Least time between two redraws.
+pub const REDRAW: Duration = Duration::from_millis(250);
+
+/// Index of the `status` extra column (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed,
+/// 3 QP failed, 4 invalid state; [`crate::hardware::log::extra_columns`]).
+const STATUS: usize = 1;
+/// Index of the `attempts` extra column (sync reads this tick).
+const ATTEMPTS: usize = 2;
+
+/// Counts shown on the status line.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StatusCounts {
+    /// Ticks logged.
+    pub ticks: u64,
+    /// Ticks without a fresh reading of every servo (nothing new sent).
+    pub held: u64,
+    /// Sync reads repeated within a tick.
+    pub retries: u64,
+    /// QPs whose barrier rows had to be relaxed.
+    pub relaxed: u64,
+    /// QPs without a verified solution (zero command).
+    pub failed: u64,
+    /// Ticks with a state outside the model (zero command).
+    pub invalid: u64,
+    /// Lowest barrier read so far \[m\] (infinite before the first reading).
+    pub lowest: f64,
+    /// Loop rate over the last redraw interval \[Hz\].
+    pub rate: f64,
+}
+
+impl StatusCounts {
+    /// Counts before any row.
+    pub fn new() -> StatusCounts {
+        StatusCounts {
+            lowest: f64::INFINITY,
+            ..StatusCounts::default()
+        }
+    }
+
+    /// Adds one logged row.
+    pub fn add(&mut self, row: &Row<'_>) {
+        self.ticks += 1;
+        let status = row.extra.get(STATUS).copied().unwrap_or(f64::NAN);
+        match status as i64 {
+            -1 => self.held += 1,
+            2 => self.relaxed += 1,
+            3 => self.failed += 1,
+            4 => self.invalid += 1,
+            _ => {}
+        }
+        let attempts = row.extra.get(ATTEMPTS).copied().unwrap_or(0.0);
+        if attempts > 1.0 {
+            self.retries += attempts as u64 - 1;
+        }
+        for &b in row.b {
+            // NaN (no reading) never lowers the minimum.
+            if b < self.lowest {
+                self.lowest = b;
+            }
+        }
+    }
+
+    /// The line, e.g. `t 12.3 s  33.0 Hz  lowest barrier +1.234 mm  QP: 0 relaxed, 0 failed,
+    /// 0 invalid  bus: 2 held, 1 retries`.
+    pub fn line(&self, t: f64) -> String {
+        let lowest = if self.lowest.is_finite() {
+            format!("{:+.3} mm", self.lowest * 1e3)
+        } else {
+            "—".to_string()
+        };
+        format!(
+            "t {t:.1} s  {:.1} Hz  lowest barrier {lowest}  QP: {} relaxed, {} failed, {} \
+             invalid  bus: {} held, {} retries",
+            self.rate, self.relaxed, self.failed, self.invalid, self.held, self.retries
+        )
+    }
+}
+
+/// A [`RunLog`] that also keeps [`StatusCounts`] and draws them on standard error.
+pub struct StatusLine<L: RunLog> {
+    inner: L,
+    counts: StatusCounts,
+    enabled: bool,
+    last_draw: Option<(Instant, u64)>,
+    drawn: bool,
+}
+
+impl<L: RunLog> StatusLine<L> {
+    /// Wraps `inner`; draws only when `enabled` and standard error is a terminal.
+    pub fn new(inner: L, enabled: bool) -> StatusLine<L> {
+        StatusLine {
+            inner,
+            counts: StatusCounts::new(),
+            enabled: enabled && std::io::stderr().is_terminal(),
+            last_draw: None,
+            drawn: false,
+        }
+    }
+
+    /// The counts so far.
+    pub fn counts(&self) -> &StatusCounts {
+        &self.counts
+    }
+
+    /// Ends the line (so that later output starts on a fresh one) and returns the log.
+    pub fn into_inner(self) -> L {
+        if self.drawn {
+            let mut stderr = std::io::stderr().lock();
+            let _ = writeln!(stderr);
+            let _ = stderr.flush();
+        }
+        self.inner
+    }
+
+    fn draw(&mut self, t: f64) {
+        let now = Instant::now();
+        let Some((then, ticks)) = self.last_draw else {
+            self.last_draw = Some((now, self.counts.ticks));
+            return;
+        };
+        let elapsed = now.duration_since(then);
+        if elapsed < REDRAW {
+            return;
+        }
+        self.counts.rate = (self.counts.ticks - ticks) as f64 / elapsed.as_secs_f64();
+        self.last_draw = Some((now, self.counts.ticks));
+        let mut stderr = std::io::stderr().lock();
+        // `\r` and clear-to-end-of-line: the line is redrawn in place.
+        let _ = write!(stderr, "\r\x1b[K{}", self.counts.line(t));
+        let _ = stderr.flush();
+        self.drawn = true;
+    }
+}
+
+impl<L: RunLog> RunLog for StatusLine<L> {
+    fn push(&mut self, row: &Row<'_>) -> Result<(), String> {
+        let logged = self.inner.push(row);
+        self.counts.add(row);
+        if self.enabled {
+            self.draw(row.t);
+        }
+        logged
+    }
+
+    fn flush(&mut self) -> Result<(), String> {
+        self.inner.flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hardware::log::extra_columns;
+
+    #[test]
+    fn the_columns_read_are_the_status_and_the_attempts() {
+        let names = extra_columns(6, 6);
+        assert!(names[STATUS].starts_with("status"), "{}", names[STATUS]);
+        assert!(
+            names[ATTEMPTS].starts_with("attempts"),
+            "{}",
+            names[ATTEMPTS]
+        );
+    }
+
+    #[test]
+    fn rows_are_counted_by_status_attempts_and_barriers() {
+        let mut counts = StatusCounts::new();
+        let q = [0.0; 3];
+        let mut extra = [0.0; 4];
+        let rows = [
+            (-1.0, 3.0, f64::NAN),
+            (1.0, 1.0, 0.004),
+            (2.0, 2.0, -0.001),
+            (3.0, 1.0, 0.002),
+            (4.0, 1.0, 0.003),
+        ];
+        for (status, attempts, b) in rows {
+            extra[STATUS] = status;
+            extra[ATTEMPTS] = attempts;
+            counts.add(&Row {
+                t: 0.0,
+                q: &q,
+                qd: &q,
+                tau: &q,
+                tau_nom: &q,
+                b: &[b, 0.01],
+                extra: &extra,
+            });
+        }
+        assert_eq!(counts.ticks, 5);
+        assert_eq!(
+            (counts.held, counts.relaxed, counts.failed, counts.invalid),
+            (1, 1, 1, 1)
+        );
+        assert_eq!(counts.retries, 3);
+        assert_eq!(counts.lowest, -0.001);
+        let line = counts.line(1.25);
+        assert!(line.contains("lowest barrier -1.000 mm"), "{line}");
+        assert!(line.contains("1 relaxed, 1 failed, 1 invalid"), "{line}");
+        assert!(line.contains("1 held, 3 retries"), "{line}");
+    }
+}

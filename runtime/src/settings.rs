@@ -1,0 +1,433 @@
+//! Which value of each controller setting a run uses, and where it came from: the command
+//! line, then the scenario file, then the robot file, then the built-in default.
+//!
+//! One precedence for every layered setting (`K_P`, `K_D`, `p1`, `p2`, and for `simulate`
+//! the control period, duration, set point, filter and hold correction):
+//!
+//! | source | example |
+//! |---|---|
+//! | command line | `softcbf simulate --p 20`, `softcbf run --kp 8` |
+//! | scenario file | `[gains] p1 = 3` in `scenarios/x.toml` |
+//! | robot file | `[barrier] p1 = 20`, `[gains] kp = 5` in `robots/x.toml` |
+//! | built-in | the paper's `K_P = 5·I`, `K_D = 1·I`, `p1 = p2 = 10` |
+//!
+//! The first that gives a value wins; [`Sourced`] keeps which one it was, and
+//! `summary.json` records both ([`SettingsReport`]).
+
+use std::fmt;
+
+use serde::Serialize;
+use softcbf_description::gains::{GainForm, scaled_identity, written_form};
+use softcbf_description::limits;
+use softcbf_description::robot::{DEFAULT_BARRIER_GAINS, Robot};
+
+use crate::cli::check_number;
+use crate::control::ControllerSettings;
+use crate::scenario::PAPER_GAINS;
+
+/// Where a setting's value came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// An option on the command line.
+    CommandLine,
+    /// The scenario file.
+    Scenario,
+    /// The robot file.
+    RobotFile,
+    /// The built-in default.
+    BuiltIn,
+}
+
+impl fmt::Display for Source {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str(match self {
+            Source::CommandLine => "command line",
+            Source::Scenario => "scenario",
+            Source::RobotFile => "robot file",
+            Source::BuiltIn => "built-in",
+        })
+    }
+}
+
+/// A value and where it came from.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Sourced<T> {
+    /// The value used.
+    pub value: T,
+    /// Where it came from.
+    pub source: Source,
+}
+
+impl<T> Sourced<T> {
+    /// `value` from `source`.
+    pub fn new(value: T, source: Source) -> Sourced<T> {
+        Sourced { value, source }
+    }
+}
+
+/// The first of `layers` that holds a value (they are given in precedence order), else
+/// `default` as [`Source::BuiltIn`].
+pub fn first<T, const N: usize>(layers: [(Option<T>, Source); N], default: T) -> Sourced<T> {
+    layers
+        .into_iter()
+        .find_map(|(value, source)| value.map(|value| Sourced::new(value, source)))
+        .unwrap_or(Sourced::new(default, Source::BuiltIn))
+}
+
+/// Gains given on the command line, each a number (`K_P`, `K_D` times the identity),
+/// checked against the same ranges as the files'.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GainOptions {
+    /// `--kp` \[N/m\].
+    pub kp: Option<f64>,
+    /// `--kd` \[N·s/m\].
+    pub kd: Option<f64>,
+    /// `--p1` (or `--p`) \[1/s\].
+    pub p1: Option<f64>,
+    /// `--p2` (or `--p`) \[1/s\].
+    pub p2: Option<f64>,
+}
+
+impl GainOptions {
+    /// Checks the options `--kp`, `--kd`, `--p` (both class-K gains), `--p1` and `--p2`;
+    /// `--p` together with `--p1` or `--p2` is refused as ambiguous.
+    pub fn checked(
+        kp: Option<f64>,
+        kd: Option<f64>,
+        p: Option<f64>,
+        p1: Option<f64>,
+        p2: Option<f64>,
+    ) -> Result<GainOptions, String> {
+        if p.is_some() && (p1.is_some() || p2.is_some()) {
+            return Err(
+                "--p sets both class-K gains; give either --p or --p1/--p2, not both".into(),
+            );
+        }
+        let check = |name: &str, value: Option<f64>, limit| {
+            value.map(|v| check_number(name, v, limit)).transpose()
+        };
+        let p = check("--p", p, &limits::BARRIER_GAIN_PER_S)?;
+        Ok(GainOptions {
+            kp: check("--kp", kp, &limits::KP_N_PER_M)?,
+            kd: check("--kd", kd, &limits::KD_N_S_PER_M)?,
+            p1: p.or(check("--p1", p1, &limits::BARRIER_GAIN_PER_S)?),
+            p2: p.or(check("--p2", p2, &limits::BARRIER_GAIN_PER_S)?),
+        })
+    }
+}
+
+/// Gains a scenario file gives (checked; `K_P`, `K_D` as `nq × nq` row-major matrices).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ScenarioGains {
+    /// `gains.kp`.
+    pub kp: Option<Vec<f64>>,
+    /// `gains.kd`.
+    pub kd: Option<Vec<f64>>,
+    /// `gains.p1`.
+    pub p1: Option<f64>,
+    /// `gains.p2`.
+    pub p2: Option<f64>,
+}
+
+/// The gains a run uses, each with its source.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gains {
+    /// `K_P`, `nq × nq` row-major \[N/m\].
+    pub kp: Sourced<Vec<f64>>,
+    /// `K_D`, `nq × nq` row-major \[N·s/m\].
+    pub kd: Sourced<Vec<f64>>,
+    /// HOCBF class-K gain `p1` \[1/s\].
+    pub p1: Sourced<f64>,
+    /// HOCBF class-K gain `p2` \[1/s\].
+    pub p2: Sourced<f64>,
+}
+
+/// The gains for `robot` by the one precedence: `command_line`, `scenario`, the robot
+/// file, the built-in paper gains.
+pub fn resolve_gains(command_line: &GainOptions, scenario: &ScenarioGains, robot: &Robot) -> Gains {
+    let nq = 3 * robot.modules.len();
+    let identity = |k: Option<f64>| k.map(|k| scaled_identity(nq, k));
+    let (kp, kd) = PAPER_GAINS;
+    let [p1, p2] = DEFAULT_BARRIER_GAINS;
+    Gains {
+        kp: first(
+            [
+                (identity(command_line.kp), Source::CommandLine),
+                (scenario.kp.clone(), Source::Scenario),
+                (robot.gains.kp.clone(), Source::RobotFile),
+            ],
+            scaled_identity(nq, kp),
+        ),
+        kd: first(
+            [
+                (identity(command_line.kd), Source::CommandLine),
+                (scenario.kd.clone(), Source::Scenario),
+                (robot.gains.kd.clone(), Source::RobotFile),
+            ],
+            scaled_identity(nq, kd),
+        ),
+        p1: first(
+            [
+                (command_line.p1, Source::CommandLine),
+                (scenario.p1, Source::Scenario),
+                (robot.barrier[0], Source::RobotFile),
+            ],
+            p1,
+        ),
+        p2: first(
+            [
+                (command_line.p2, Source::CommandLine),
+                (scenario.p2, Source::Scenario),
+                (robot.barrier[1], Source::RobotFile),
+            ],
+            p2,
+        ),
+    }
+}
+
+impl Gains {
+    /// Writes the gains into `settings`.
+    pub fn apply(&self, settings: &mut ControllerSettings) {
+        settings.kp.clone_from(&self.kp.value);
+        settings.kd.clone_from(&self.kd.value);
+        settings.barrier_gains = [self.p1.value, self.p2.value];
+    }
+
+    /// The gains as `summary.json` records them (`K_P`, `K_D` in their shortest form).
+    pub fn report(&self, nq: usize) -> GainsReport {
+        let form = |k: &Sourced<Vec<f64>>| Sourced::new(written_form(&k.value, nq), k.source);
+        GainsReport {
+            kp: form(&self.kp),
+            kd: form(&self.kd),
+            p1: self.p1.clone(),
+            p2: self.p2.clone(),
+        }
+    }
+}
+
+/// The gains of a run as recorded: `K_P`, `K_D` as a number (times the identity), a
+/// diagonal or rows.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GainsReport {
+    /// `K_P` \[N/m\].
+    pub kp: Sourced<GainForm>,
+    /// `K_D` \[N·s/m\].
+    pub kd: Sourced<GainForm>,
+    /// `p1` \[1/s\].
+    pub p1: Sourced<f64>,
+    /// `p2` \[1/s\].
+    pub p2: Sourced<f64>,
+}
+
+/// A description file by its name and where it was read from.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Described {
+    /// The name the file gives (else its stem).
+    pub name: String,
+    /// The path as given, or `<embedded …>` for a built-in file.
+    pub file: String,
+}
+
+/// Integrator tolerances as recorded.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IntegratorReport {
+    /// Relative tolerance.
+    pub rtol: f64,
+    /// Absolute tolerance \[m, m/s\].
+    pub atol: f64,
+    /// First step tried \[s\].
+    pub h_initial: f64,
+    /// Most step attempts within one tick.
+    pub max_steps: usize,
+}
+
+/// Every setting a run used, with its source: what `summary.json` records under
+/// `settings` and the `settings:` line shows.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SettingsReport {
+    /// `softcbf` and its version.
+    pub software: String,
+    /// The robot.
+    pub robot: Described,
+    /// The scenario (`None` for a hardware run).
+    pub scenario: Option<Described>,
+    /// Whether the safety filter ran.
+    pub filter: Sourced<bool>,
+    /// `K_P`, `K_D`, `p1`, `p2`.
+    #[serde(flatten)]
+    pub gains: GainsReport,
+    /// Whether the HOCBF rows were corrected for the zero-order hold.
+    pub hold_correction: Sourced<bool>,
+    /// Control period \[s\] (for a hardware run: one over the loop rate asked for).
+    pub control_period: Sourced<f64>,
+    /// Duration asked for \[s\] (`None`: until stopped).
+    pub duration: Option<Sourced<f64>>,
+    /// The set point or waypoints, and where they came from.
+    pub reference: Sourced<String>,
+    /// Integrator tolerances (simulation only).
+    pub integrator: Option<IntegratorReport>,
+}
+
+/// `softcbf <version>`.
+pub fn software() -> String {
+    format!("softcbf {}", env!("CARGO_PKG_VERSION"))
+}
+
+impl SettingsReport {
+    /// The one line that says what ran, e.g. `settings: softcbf 0.1.0; robot paper-sim
+    /// (<embedded robots/paper-sim.toml>); … K_P = 5 (built-in), … p1 = 20 (robot file) …`.
+    pub fn line(&self) -> String {
+        let g = &self.gains;
+        let mut parts = vec![self.software.clone()];
+        parts.push(format!("robot {} ({})", self.robot.name, self.robot.file));
+        if let Some(scenario) = &self.scenario {
+            parts.push(format!("scenario {} ({})", scenario.name, scenario.file));
+        }
+        let on = |b: bool| if b { "on" } else { "off" };
+        parts.push(format!(
+            "filter {} ({})",
+            on(self.filter.value),
+            self.filter.source
+        ));
+        parts.push(format!(
+            "K_P = {} ({}), K_D = {} ({}), p1 = {} ({}), p2 = {} ({})",
+            g.kp.value,
+            g.kp.source,
+            g.kd.value,
+            g.kd.source,
+            limits::short(g.p1.value),
+            g.p1.source,
+            limits::short(g.p2.value),
+            g.p2.source
+        ));
+        parts.push(format!(
+            "hold correction {} ({})",
+            on(self.hold_correction.value),
+            self.hold_correction.source
+        ));
+        parts.push(format!(
+            "control period {} s ({})",
+            limits::short(self.control_period.value),
+            self.control_period.source
+        ));
+        if let Some(duration) = &self.duration {
+            parts.push(format!(
+                "duration {} s ({})",
+                limits::short(duration.value),
+                duration.source
+            ));
+        }
+        parts.push(format!(
+            "reference {} ({})",
+            self.reference.value, self.reference.source
+        ));
+        if let Some(i) = &self.integrator {
+            parts.push(format!(
+                "rtol {}, atol {}",
+                limits::short(i.rtol),
+                limits::short(i.atol)
+            ));
+        }
+        format!("settings: {}", parts.join("; "))
+    }
+}
+
+/// A short form of a vector for the settings line: `[0.08, 0, -0.05, …]`.
+pub fn vector_text(values: &[f64]) -> String {
+    let items: Vec<String> = values.iter().map(|v| limits::short(*v)).collect();
+    format!("[{}]", items.join(", "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn robot(text: &str) -> Robot {
+        let base = "[[module]]\n[[module]]\n";
+        Robot::parse(&format!("{text}\n{base}"), "r.toml".as_ref()).unwrap()
+    }
+
+    #[test]
+    fn the_first_layer_that_gives_a_value_wins() {
+        let chosen = first(
+            [(None, Source::CommandLine), (Some(3.0), Source::Scenario)],
+            1.0,
+        );
+        assert_eq!(chosen, Sourced::new(3.0, Source::Scenario));
+        let none: Sourced<f64> = first([(None, Source::CommandLine)], 1.0);
+        assert_eq!(none, Sourced::new(1.0, Source::BuiltIn));
+    }
+
+    #[test]
+    fn command_line_then_scenario_then_robot_then_built_in() {
+        let robot = robot("[barrier]\np1 = 20.0\np2 = 20.0\n[gains]\nkp = 7.0\n");
+        let nq = 6;
+        let none = resolve_gains(&GainOptions::default(), &ScenarioGains::default(), &robot);
+        assert_eq!(none.p1, Sourced::new(20.0, Source::RobotFile));
+        assert_eq!(none.kp.source, Source::RobotFile);
+        assert_eq!(none.kp.value[0], 7.0);
+        assert_eq!(
+            none.kd,
+            Sourced::new(scaled_identity(nq, 1.0), Source::BuiltIn)
+        );
+
+        let scenario = ScenarioGains {
+            p1: Some(3.0),
+            kd: Some(scaled_identity(nq, 2.0)),
+            ..ScenarioGains::default()
+        };
+        let from_scenario = resolve_gains(&GainOptions::default(), &scenario, &robot);
+        assert_eq!(from_scenario.p1, Sourced::new(3.0, Source::Scenario));
+        assert_eq!(from_scenario.p2, Sourced::new(20.0, Source::RobotFile));
+        assert_eq!(from_scenario.kd.source, Source::Scenario);
+
+        let options = GainOptions::checked(Some(9.0), None, Some(4.0), None, None).unwrap();
+        let from_options = resolve_gains(&options, &scenario, &robot);
+        assert_eq!(from_options.p1, Sourced::new(4.0, Source::CommandLine));
+        assert_eq!(from_options.p2, Sourced::new(4.0, Source::CommandLine));
+        assert_eq!(from_options.kp.value[7], 9.0);
+        assert_eq!(from_options.kp.source, Source::CommandLine);
+        assert_eq!(from_options.kd.source, Source::Scenario);
+
+        let plain = robot_without_gains();
+        let built_in = resolve_gains(&GainOptions::default(), &ScenarioGains::default(), &plain);
+        assert_eq!(built_in.p1, Sourced::new(10.0, Source::BuiltIn));
+        assert_eq!(built_in.kp.source, Source::BuiltIn);
+    }
+
+    fn robot_without_gains() -> Robot {
+        robot("")
+    }
+
+    #[test]
+    fn options_are_checked_against_the_files_ranges() {
+        let error = GainOptions::checked(None, None, Some(-1.0), None, None).unwrap_err();
+        assert!(error.starts_with("--p: must be"), "{error}");
+        let error = GainOptions::checked(Some(2e6), None, None, None, None).unwrap_err();
+        assert!(error.starts_with("--kp: must be"), "{error}");
+        let error = GainOptions::checked(None, None, Some(1.0), Some(2.0), None).unwrap_err();
+        assert!(error.contains("either --p or --p1/--p2"), "{error}");
+        let split = GainOptions::checked(None, None, None, Some(2.0), None).unwrap();
+        assert_eq!((split.p1, split.p2), (Some(2.0), None));
+    }
+
+    #[test]
+    fn gains_are_recorded_in_the_shortest_written_form() {
+        let robot = robot(
+            "[gains]\nkp = [1, 2, 3, 4, 5, 6]\nkd = [[1, 0, 0, 0, 0, 0], [0.5, 1, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0], [0, 0, 0, 1, 0, 0], [0, 0, 0, 0, 1, 0], [0, 0, 0, 0, 0, 1]]\n",
+        );
+        let gains = resolve_gains(&GainOptions::default(), &ScenarioGains::default(), &robot);
+        let report = gains.report(6);
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(
+            json["kp"]["value"],
+            serde_json::json!([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+        );
+        assert_eq!(json["kp"]["source"], "robot_file");
+        assert_eq!(json["kd"]["value"][1][0], 0.5);
+        assert_eq!(json["p1"]["value"], 10.0);
+        assert_eq!(json["p1"]["source"], "built_in");
+        assert_eq!(report.kp.value.to_string(), "diag[1, 2, 3, 4, 5, 6]");
+    }
+}

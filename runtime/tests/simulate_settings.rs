@@ -1,0 +1,325 @@
+//! `softcbf simulate` settings end to end: one precedence (command line > scenario > robot
+//! file > built-in) that the run actually uses, a summary that records every setting with
+//! its source, the common flags, and the messages for settings that cannot work together.
+//!
+//! Runs are short (50–100 ms of robot time) so that each takes a few milliseconds.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_softcbf");
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("softcbf-settings-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn simulate(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .arg("simulate")
+        .args(args)
+        .output()
+        .expect("the softcbf binary runs")
+}
+
+/// Runs `simulate` with `args` into `out` and returns its summary.json.
+fn summary(out: &Path, args: &[&str]) -> Value {
+    let mut all = vec!["--out", out.to_str().unwrap()];
+    all.extend_from_slice(args);
+    let output = simulate(&all);
+    assert!(
+        output.status.success(),
+        "simulate {args:?} failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// The paper robot with `[barrier] p1 = p2 = p`, written into `dir`.
+fn robot_with_p(dir: &Path, p: f64, name: &str) -> PathBuf {
+    let text = std::fs::read_to_string(repo("robots/paper-sim.toml")).unwrap();
+    let text = text
+        .replace("p1 = 10.0", &format!("p1 = {p:?}"))
+        .replace("p2 = 10.0", &format!("p2 = {p:?}"))
+        .replace("name = \"paper-sim\"", &format!("name = \"{name}\""));
+    assert!(text.contains(&format!("p1 = {p:?}")));
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn setting<'a>(summary: &'a Value, name: &str) -> (&'a Value, &'a str) {
+    let entry = &summary["settings"][name];
+    (&entry["value"], entry["source"].as_str().unwrap_or("?"))
+}
+
+#[test]
+fn the_robot_files_gains_are_used_unless_the_scenario_or_the_command_line_say_otherwise() {
+    let dir = temp_dir("precedence");
+    let robot = robot_with_p(&dir, 3.0, "soft-three");
+    let robot = robot.to_str().unwrap();
+    let short = ["--duration", "0.1"];
+
+    // The embedded scenario gives no gains: the robot file's p = 3 wins over the built-in 10.
+    let from_robot = summary(&dir.join("a"), &[&["--robot", robot][..], &short].concat());
+    assert_eq!(
+        setting(&from_robot, "p1"),
+        (&Value::from(3.0), "robot_file")
+    );
+    assert_eq!(
+        setting(&from_robot, "p2"),
+        (&Value::from(3.0), "robot_file")
+    );
+    assert_eq!(
+        setting(&from_robot, "kp"),
+        (&Value::from(5.0), "robot_file")
+    );
+    assert_eq!(from_robot["robot"], "soft-three");
+    assert_eq!(from_robot["settings"]["robot"]["file"], robot);
+
+    // The paper robot with --p 3 on the command line runs the same controller: the same
+    // trajectory to the last digit, so the robot file's gains were used, not just recorded.
+    let from_option = summary(&dir.join("b"), &[&["--p", "3"][..], &short].concat());
+    assert_eq!(
+        setting(&from_option, "p1"),
+        (&Value::from(3.0), "command_line")
+    );
+    let csv = |run: &str| std::fs::read_to_string(dir.join(run).join("trajectory.csv")).unwrap();
+    assert_eq!(csv("a"), csv("b"));
+    // And the paper's p = 10 runs differently.
+    let paper = summary(&dir.join("c"), &short);
+    assert_eq!(setting(&paper, "p1"), (&Value::from(10.0), "robot_file"));
+    assert_ne!(csv("a"), csv("c"));
+
+    // A scenario's [gains] wins over the robot file's; the command line wins over both.
+    let scenario = dir.join("scenario.toml");
+    std::fs::write(
+        &scenario,
+        format!(
+            "robot = \"{robot}\"\nduration = 0.1\n[reference]\nset_point = [0.08, 0.0, -0.05, \
+             0.0, -0.06, -0.07]\n[gains]\np1 = 4.0\nkd = 2.0\n"
+        ),
+    )
+    .unwrap();
+    let scenario = scenario.to_str().unwrap();
+    let from_scenario = summary(&dir.join("d"), &["--scenario", scenario]);
+    assert_eq!(
+        setting(&from_scenario, "p1"),
+        (&Value::from(4.0), "scenario")
+    );
+    assert_eq!(
+        setting(&from_scenario, "p2"),
+        (&Value::from(3.0), "robot_file")
+    );
+    assert_eq!(
+        setting(&from_scenario, "kd"),
+        (&Value::from(2.0), "scenario")
+    );
+    let overridden = summary(
+        &dir.join("e"),
+        &["--scenario", scenario, "--p1", "7", "--kd", "0.5"],
+    );
+    assert_eq!(
+        setting(&overridden, "p1"),
+        (&Value::from(7.0), "command_line")
+    );
+    assert_eq!(
+        setting(&overridden, "p2"),
+        (&Value::from(3.0), "robot_file")
+    );
+    assert_eq!(
+        setting(&overridden, "kd"),
+        (&Value::from(0.5), "command_line")
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_summary_records_every_setting_and_the_flags_change_them() {
+    let dir = temp_dir("flags");
+    let out = dir.join("run");
+    let output = simulate(&[
+        "--out",
+        out.to_str().unwrap(),
+        "--duration",
+        "0.06",
+        "--control-period",
+        "0.002",
+        "--set-point",
+        "0.01,0,0,0,0.01,-0.01",
+        "--hold-correction",
+        "on",
+    ]);
+    assert!(output.status.success(), "{output:?}");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let settings = &summary["settings"];
+    for key in [
+        "software",
+        "robot",
+        "scenario",
+        "filter",
+        "kp",
+        "kd",
+        "p1",
+        "p2",
+        "hold_correction",
+        "control_period",
+        "duration",
+        "reference",
+        "integrator",
+    ] {
+        assert!(
+            !settings[key].is_null(),
+            "settings.{key} missing: {settings}"
+        );
+    }
+    assert_eq!(
+        settings["software"],
+        format!("softcbf {}", env!("CARGO_PKG_VERSION"))
+    );
+    assert_eq!(
+        setting(&summary, "control_period"),
+        (&Value::from(0.002), "command_line")
+    );
+    assert_eq!(
+        setting(&summary, "duration"),
+        (&Value::from(0.06), "command_line")
+    );
+    assert_eq!(
+        setting(&summary, "hold_correction"),
+        (&Value::from(true), "command_line")
+    );
+    assert_eq!(
+        setting(&summary, "filter"),
+        (&Value::from(true), "scenario")
+    );
+    assert_eq!(settings["reference"]["source"], "command_line");
+    assert_eq!(settings["integrator"]["rtol"], 1e-6);
+    assert_eq!(
+        summary["set_point"],
+        serde_json::json!([0.01, 0.0, 0.0, 0.0, 0.01, -0.01])
+    );
+    assert_eq!(summary["control_period"], 0.002);
+    // 0.06 s at 2 ms: 30 ticks and the final row.
+    assert_eq!(summary["counts"]["ticks"], 31);
+    // The lines on standard output say what ran: the settings, and the robot's name.
+    assert!(stdout.starts_with("settings: softcbf "), "{stdout}");
+    assert!(stdout.contains("p1 = 10 (robot file)"), "{stdout}");
+    assert!(
+        stdout.contains("paper-sim on paper-sim [filter]"),
+        "{stdout}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn another_robot_is_named_in_the_one_line_summary() {
+    let dir = temp_dir("name");
+    let output = simulate(&[
+        "--robot",
+        repo("robots/hardware-example.toml").to_str().unwrap(),
+        "--duration",
+        "0.05",
+        "--no-filter",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{output:?}");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("paper-sim on hardware-example [pd]"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("p1 = 20 (robot file)"), "{stdout}");
+    // The embedded scenario asks for a comparison; a plain PD+ run says why there is none.
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("no PD+ comparison"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Runs `simulate` expecting a refusal (exit status `code`); returns standard error.
+fn refused(args: &[&str], code: i32) -> String {
+    let output = simulate(args);
+    assert_eq!(output.status.code(), Some(code), "{output:?}");
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+#[test]
+fn settings_that_cannot_work_are_refused_with_the_option_or_field_named() {
+    let dir = temp_dir("refused");
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    // clap refuses the pair itself (usage error, status 2).
+    let stderr = refused(&["--no-filter", "--compare", "--out", out], 2);
+    assert!(
+        stderr.contains("--no-filter") && stderr.contains("--compare"),
+        "{stderr}"
+    );
+    let stderr = refused(&["--p", "-1", "--out", out], 1);
+    assert!(stderr.contains("--p: must be"), "{stderr}");
+    let stderr = refused(&["--p", "5", "--p1", "4", "--out", out], 1);
+    assert!(stderr.contains("either --p or --p1/--p2"), "{stderr}");
+    let stderr = refused(&["--duration", "0.0005", "--out", out], 1);
+    assert!(
+        stderr.contains("--duration: 0.0005 s is shorter than the control period"),
+        "{stderr}"
+    );
+    let stderr = refused(&["--control-period", "0", "--out", out], 1);
+    assert!(stderr.contains("--control-period: must be"), "{stderr}");
+    let stderr = refused(&["--set-point", "0,0,0", "--out", out], 1);
+    assert!(stderr.contains("--set-point: 3 values given"), "{stderr}");
+    let stderr = refused(&["--hold-correction", "yes", "--out", out], 2);
+    assert!(stderr.contains("give `on` or `off`"), "{stderr}");
+
+    // A scenario without the filter cannot be compared with plain PD+.
+    let plain = dir.join("plain.toml");
+    std::fs::write(
+        &plain,
+        "filter = false\nduration = 0.05\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+    )
+    .unwrap();
+    let stderr = refused(
+        &[
+            "--scenario",
+            plain.to_str().unwrap(),
+            "--compare",
+            "--out",
+            out,
+        ],
+        1,
+    );
+    assert!(
+        stderr.contains("--compare: the scenario runs without the safety filter"),
+        "{stderr}"
+    );
+
+    // A scenario's robot that cannot be read: the scenario file, its line, the resolved path.
+    let nope = dir.join("nope-robot.toml");
+    std::fs::write(
+        &nope,
+        "duration = 0.05\nrobot = \"nope.toml\"\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+    )
+    .unwrap();
+    let stderr = refused(&["--scenario", nope.to_str().unwrap(), "--out", out], 1);
+    let resolved = dir.join("nope.toml");
+    assert!(
+        stderr.contains(&format!(
+            "{}:2: field `robot`: cannot read the robot file {}",
+            nope.display(),
+            resolved.display()
+        )),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
