@@ -529,8 +529,8 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
     let m = &s.min_barrier;
     if m.value.is_finite() {
         console.say(&format!(
-            "lowest barrier {:.3e} m (module {}, corner {}, t = {:.3} s); threshold {threshold:e} m",
-            m.value, m.module, m.corner, m.t
+            "lowest barrier {:.3e} m ({}, t = {:.3} s); threshold {threshold:e} m",
+            m.value, m.label, m.t
         ));
     } else if s.commands > 0 {
         console.say("lowest barrier: not finite (a state outside the model)");

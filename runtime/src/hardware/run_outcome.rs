@@ -151,9 +151,9 @@ impl RunSummary {
         let b = &self.min_barrier;
         if b.value < threshold {
             reasons.push(format!(
-                "lowest barrier {:.3e} m (module {}, corner {}, t = {:.3} s) is below the \
-                 threshold {threshold:e} m (--barrier-threshold)",
-                b.value, b.module, b.corner, b.t
+                "lowest barrier {:.3e} m ({}, t = {:.3} s) is below the threshold \
+                 {threshold:e} m (--barrier-threshold)",
+                b.value, b.label, b.t
             ));
         }
         if self.fallbacks > 0 {
