@@ -838,7 +838,7 @@ pub(super) fn draw_legend<DB: DrawingBackend>(
         text(area, label, (x + 44, y), size, TEXT, false, HPos::Left)?;
     }
     if let Some(mapping) = mapping {
-        let right = width as f64 - 250.0;
+        let right = width as f64 - 260.0;
         let bar = nice_length(60.0 / mapping.scale);
         let y = 24.0;
         segment(
@@ -859,19 +859,19 @@ pub(super) fn draw_legend<DB: DrawingBackend>(
             HPos::Left,
         )?;
         // World axes as seen by the camera.
-        let origin = (width as f64 - 60.0, height as f64 - 24.0);
+        let origin = (width as f64 - 50.0, 0.5 * height as f64 + 4.0);
         for (axis, name) in [
             ([1.0, 0.0, 0.0], "x"),
             ([0.0, 1.0, 0.0], "y"),
             ([0.0, 0.0, 1.0], "z"),
         ] {
             let (dx, dy, _) = mapping.projection.project(axis);
-            let end = (origin.0 + 30.0 * dx, origin.1 - 30.0 * dy);
+            let end = (origin.0 + 24.0 * dx, origin.1 - 24.0 * dy);
             segment(area, origin, end, &rect, MUTED.stroke_width(2), false)?;
             text(
                 area,
                 name,
-                pixel((end.0 + 6.0 * dx - 4.0, end.1 - 6.0 * dy - 8.0)),
+                pixel((end.0 + 8.0 * dx - 4.0, end.1 - 8.0 * dy - 8.0)),
                 13,
                 TEXT,
                 false,

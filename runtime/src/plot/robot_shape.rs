@@ -424,6 +424,47 @@ mod tests {
     }
 
     #[test]
+    fn tendons_have_the_length_of_docs_model_section_6() {
+        let model = paper();
+        let mut kinematics = Kinematics::new(&model);
+        let q = [0.08, 0.0, -0.05, 0.01, -0.06, 0.02];
+        let shape = kinematics.shape(&q);
+        for (i, module) in model.robot.modules.iter().enumerate() {
+            let (dx, dy, dl) = (q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+            for (tendon, psi) in shape.tendons[i].iter().zip(&module.tendon_angles) {
+                // ℓ_k = L0 + δL − (Δx cos ψ_k + Δy sin ψ_k), the signed length of the offset
+                // arc (negative past the centre of curvature, as in the paper's set point);
+                // the polyline of 16 chords is shorter by at most (θ/16)²/24 of it.
+                let expected = (module.rest_length + dl - (dx * psi.cos() + dy * psi.sin())).abs();
+                let drawn: f64 = tendon
+                    .windows(2)
+                    .map(|w| {
+                        let d = [w[1][0] - w[0][0], w[1][1] - w[0][1], w[1][2] - w[0][2]];
+                        dot(d, d).sqrt()
+                    })
+                    .sum();
+                assert!(
+                    drawn <= expected + 1e-15 && drawn > expected * (1.0 - 1e-3),
+                    "module {i}, ψ = {psi}: {drawn} vs {expected}"
+                );
+                // Its ends are at radius d, angle ψ_k on the plates below and above.
+                let d = module.tendon_radius;
+                let anchor = [d * psi.cos(), d * psi.sin(), 0.0];
+                for (end, plate) in [(tendon[0], i), (tendon[ARC_PIECES], i + 1)] {
+                    let expected = apply(&shape.poses[plate], anchor);
+                    assert!((0..3).all(|k| (end[k] - expected[k]).abs() < 1e-15));
+                }
+            }
+        }
+        // Corner heights are the barriers plus their margins.
+        let mut b = vec![0.0; model.nb()];
+        model.generated.barriers(&model.params, &q, &mut b);
+        for (gap, b) in shape.corners.iter().zip(&b) {
+            assert!((gap.height - gap.margin - b).abs() < 1e-15);
+        }
+    }
+
+    #[test]
     fn clipping_keeps_inside_and_cuts_at_the_edges() {
         let rect = Rect {
             x0: 0.0,
