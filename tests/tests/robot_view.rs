@@ -354,7 +354,7 @@ fn views_are_written_with_the_documented_size_and_are_byte_stable() {
     let files = draw_robot_views(&dir, "robot", &model, &panels, &ViewOptions::default()).unwrap();
     assert_eq!(files, [dir.join("robot.png"), dir.join("robot.svg")]);
     let (width, height, pixels) = decode_png(&files[0]);
-    assert_eq!((width, height), (270 * 4 + 400, 40 + 2 * 514 + 86));
+    assert_eq!((width, height), (270 * 4 + 400, 40 + 2 * 514 + 76));
     let (red, orange) = (count(&pixels, RED), count(&pixels, ORANGE));
     let svg = std::fs::read_to_string(&files[1]).unwrap();
     assert!(svg.starts_with("<svg"));
@@ -382,7 +382,7 @@ fn views_are_written_with_the_documented_size_and_are_byte_stable() {
     };
     let files = draw_robot_views(&dir, "calm", &model, &[("calm", &calm)], &options).unwrap();
     let (width, height, pixels) = decode_png(&files[0]);
-    assert_eq!((width, height), (940, 40 + 514 + 86));
+    assert_eq!((width, height), (940, 40 + 514 + 132));
     // The legend's marks only.
     let (legend_red, legend_orange) = (count(&pixels, RED), count(&pixels, ORANGE));
     assert!(legend_red > 50 && legend_red < 200 && legend_orange < 200);
@@ -426,7 +426,7 @@ fn edge_cases_draw_without_panicking() {
         )
         .unwrap();
         let (width, height, _) = decode_png(&files[0]);
-        assert_eq!((width, height), (270 * 4 + 400, 40 + 514 + 86), "{name}");
+        assert_eq!((width, height), (270 * 4 + 400, 40 + 514 + 76), "{name}");
         let options = ViewOptions {
             times: vec![-1.0, 0.5, 100.0],
             camera: Some(Camera {
@@ -445,7 +445,7 @@ fn edge_cases_draw_without_panicking() {
         let (width, height, _) = decode_png(&files[0]);
         assert_eq!(
             (width, height),
-            (270 * 3 + 400, 40 + 3 * 514 + 86),
+            (270 * 3 + 400, 40 + 3 * 514 + 104),
             "{name}"
         );
         let svg = std::fs::read_to_string(&files[1]).unwrap();

@@ -20,8 +20,23 @@ pub(super) const CELL_HEIGHT: u32 = 480;
 /// Height of the figure title band and of a row's title band \[px\].
 pub(super) const TITLE_HEIGHT: u32 = 40;
 pub(super) const ROW_TITLE_HEIGHT: u32 = 34;
-/// Height of the legend strip \[px\].
-pub(super) const LEGEND_HEIGHT: u32 = 86;
+/// Width of the legend's right block (scale bar, camera, axes) and of one of its
+/// columns of entries \[px\].
+const LEGEND_RIGHT: u32 = 290;
+const LEGEND_COLUMN: u32 = 290;
+/// Entries of the legend.
+const LEGEND_ENTRIES: u32 = 8;
+
+/// Columns of legend entries in a figure `width` pixels wide (1 to 4).
+fn legend_columns(width: u32) -> u32 {
+    (width.saturating_sub(LEGEND_RIGHT) / LEGEND_COLUMN).clamp(1, 4)
+}
+
+/// Height of the legend strip of a figure `width` pixels wide \[px\]: 28 per row of
+/// entries, at least the right block's 76.
+pub(super) fn legend_height(width: u32) -> u32 {
+    (20 + 28 * LEGEND_ENTRIES.div_ceil(legend_columns(width))).max(76)
+}
 /// Room for the captions at the top of a cell \[px\].
 pub(super) const CAPTION_HEIGHT: f64 = 46.0;
 /// Room for the zoom's annotation at the bottom \[px\].
@@ -608,11 +623,11 @@ impl Figure<'_> {
     }
 
     pub(super) fn size(&self) -> (u32, u32) {
-        let width = CELL_WIDTH * self.columns() as u32 + ZOOM_WIDTH;
+        let width = (CELL_WIDTH * self.columns() as u32 + ZOOM_WIDTH).max(900);
         let rows = self.scenes.len() as u32;
         (
-            width.max(900),
-            TITLE_HEIGHT + rows * (ROW_TITLE_HEIGHT + CELL_HEIGHT) + LEGEND_HEIGHT,
+            width,
+            TITLE_HEIGHT + rows * (ROW_TITLE_HEIGHT + CELL_HEIGHT) + legend_height(width),
         )
     }
 }
@@ -625,16 +640,13 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
     root.fill(&WHITE).map_err(e)?;
     let (width, height) = root.dim_in_pixel();
     let (header, rest) = root.split_vertically(TITLE_HEIGHT);
-    let (rows, legend) = rest.split_vertically(height - TITLE_HEIGHT - LEGEND_HEIGHT);
-    let camera = figure.camera;
+    let (rows, legend) = rest.split_vertically(height - TITLE_HEIGHT - legend_height(width));
     text(
         &header,
         &format!(
-            "{}: the robot at {} snapshot times and its final gaps (orthographic view from azimuth {}°, elevation {}°)",
+            "{}: the robot at {} snapshot times and its final gaps",
             figure.model.robot.name,
             figure.columns(),
-            format!("{:.0}", camera.azimuth_deg).replace('-', "−"),
-            format!("{:.0}", camera.elevation_deg).replace('-', "−"),
         ),
         (12, 10),
         19,
@@ -729,8 +741,7 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
             }
         }
     }
-    draw_legend(&legend, figure.active_below, Some(&mapping))?;
-    let _ = width;
+    draw_legend(&legend, figure.active_below, &mapping, figure.camera)?;
     Ok(())
 }
 
@@ -743,12 +754,14 @@ pub(super) fn draw_cell_frame<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>)
     .map_err(|e| e.to_string())
 }
 
-/// The legend strip: one entry per kind of line and mark, the scale bar of the snapshot
-/// cells (if given) and the world axes as the camera sees them.
+/// The legend strip: one entry per kind of line and mark (in as many columns as fit),
+/// then at the right the scale bar of the snapshot cells, the camera and the world axes
+/// as it sees them.
 pub(super) fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     active_below: f64,
-    mapping: Option<&Mapping>,
+    mapping: &Mapping,
+    camera: Camera,
 ) -> DrawResult {
     let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
     let (width, height) = area.dim_in_pixel();
@@ -758,48 +771,38 @@ pub(super) fn draw_legend<DB: DrawingBackend>(
         x1: width as f64,
         y1: height as f64,
     };
-    let size = if mapping.is_some() { 15 } else { 13 };
-    let entries: [(&str, u8); 8] = [
-        ("backbone (PCC arc)", 0),
-        ("tendon", 1),
-        ("plate", 2),
-        ("base plate", 3),
-        ("", 4),
-        ("", 5),
-        ("drop to the plate below", 6),
-        ("zoom: margin ε above the plane below", 7),
-    ];
     let active = format!(
         "corner with b ≤ {}",
         format_mm(active_below).trim_start_matches('+')
     );
-    let violated = "corner with b < 0".to_string();
-    let columns = 4;
-    let step = (width as i32 - 200).max(400) / columns;
+    let entries: [(&str, u8); LEGEND_ENTRIES as usize] = [
+        ("backbone (PCC arc)", 0),
+        ("tendon", 1),
+        ("plate", 2),
+        ("base plate", 3),
+        (active.as_str(), 4),
+        ("corner with b < 0", 5),
+        ("drop to the plate below", 6),
+        ("margin ε over the plane below", 7),
+    ];
+    let columns = legend_columns(width) as i32;
     for (k, (label, kind)) in entries.iter().enumerate() {
-        if mapping.is_none() && *kind == 7 {
-            continue;
-        }
-        let x = 14 + step * (k as i32 % columns);
-        let y = 16 + 30 * (k as i32 / columns);
+        let x = 14 + LEGEND_COLUMN as i32 * (k as i32 % columns);
+        let y = 12 + 28 * (k as i32 / columns);
         let (xf, yf) = (x as f64, y as f64 + 8.0);
+        let line = |colour: RGBColor, width: u32, dashed: bool| {
+            segment(
+                area,
+                (xf, yf),
+                (xf + 34.0, yf),
+                &rect,
+                colour.stroke_width(width),
+                dashed,
+            )
+        };
         match kind {
-            0 => segment(
-                area,
-                (xf, yf),
-                (xf + 34.0, yf),
-                &rect,
-                BACKBONE.stroke_width(3),
-                false,
-            )?,
-            1 => segment(
-                area,
-                (xf, yf),
-                (xf + 34.0, yf),
-                &rect,
-                TENDON.stroke_width(1),
-                false,
-            )?,
+            0 => line(BACKBONE, 3, false)?,
+            1 => line(TENDON, 1, false)?,
             2 | 3 | 7 => {
                 let (fill, edge) = match kind {
                     2 => (PLATE_FILL, Some((PLATE_EDGE, 2))),
@@ -821,63 +824,71 @@ pub(super) fn draw_legend<DB: DrawingBackend>(
                 area.draw(&Circle::new(c, 6, BLACK.stroke_width(1)))
                     .map_err(e)?;
             }
-            _ => segment(
-                area,
-                (xf, yf),
-                (xf + 34.0, yf),
-                &rect,
-                ACTIVE.stroke_width(2),
-                true,
-            )?,
+            _ => line(ACTIVE, 2, true)?,
         }
-        let label = match kind {
-            4 => active.as_str(),
-            5 => violated.as_str(),
-            _ => label,
-        };
-        text(area, label, (x + 44, y), size, TEXT, false, HPos::Left)?;
+        text(area, label, (x + 44, y), 15, TEXT, false, HPos::Left)?;
     }
-    if let Some(mapping) = mapping {
-        let right = width as f64 - 260.0;
-        let bar = nice_length(60.0 / mapping.scale);
-        let y = 24.0;
-        segment(
-            area,
-            (right, y),
-            (right + bar * mapping.scale, y),
-            &rect,
-            BLACK.stroke_width(2),
-            false,
-        )?;
+    // The right block: scale bar, camera, axes.
+    let left = width as f64 - LEGEND_RIGHT as f64 + 10.0;
+    let bar = nice_length(60.0 / mapping.scale);
+    let bar_end = left + bar * mapping.scale;
+    segment(
+        area,
+        (left, 20.0),
+        (bar_end, 20.0),
+        &rect,
+        BLACK.stroke_width(2),
+        false,
+    )?;
+    text(
+        area,
+        &format!("{} mm", (bar * 1000.0).round()),
+        pixel((bar_end + 8.0, 12.0)),
+        13,
+        TEXT,
+        false,
+        HPos::Left,
+    )?;
+    let degrees = |v: f64| format!("{v:.0}°").replace('-', "−");
+    for (k, line) in [
+        "orthographic view, equal scales,".to_string(),
+        format!(
+            "azimuth {}, elevation {}",
+            degrees(camera.azimuth_deg),
+            degrees(camera.elevation_deg)
+        ),
+    ]
+    .iter()
+    .enumerate()
+    {
         text(
             area,
-            &format!("{} mm (snapshots)", (bar * 1000.0).round()),
-            pixel((right, y + 6.0)),
+            line,
+            (left as i32, 32 + 17 * k as i32),
+            12,
+            MUTED,
+            false,
+            HPos::Left,
+        )?;
+    }
+    let origin = (width as f64 - 40.0, 42.0);
+    for (axis, name) in [
+        ([1.0, 0.0, 0.0], "x"),
+        ([0.0, 1.0, 0.0], "y"),
+        ([0.0, 0.0, 1.0], "z"),
+    ] {
+        let (dx, dy, _) = mapping.projection.project(axis);
+        let end = (origin.0 + 22.0 * dx, origin.1 - 22.0 * dy);
+        segment(area, origin, end, &rect, MUTED.stroke_width(2), false)?;
+        text(
+            area,
+            name,
+            pixel((end.0 + 8.0 * dx - 4.0, end.1 - 8.0 * dy - 8.0)),
             13,
             TEXT,
             false,
             HPos::Left,
         )?;
-        // World axes as seen by the camera.
-        let origin = (width as f64 - 50.0, 0.5 * height as f64 + 4.0);
-        for (axis, name) in [
-            ([1.0, 0.0, 0.0], "x"),
-            ([0.0, 1.0, 0.0], "y"),
-            ([0.0, 0.0, 1.0], "z"),
-        ] {
-            let (dx, dy, _) = mapping.projection.project(axis);
-            let end = (origin.0 + 24.0 * dx, origin.1 - 24.0 * dy);
-            segment(area, origin, end, &rect, MUTED.stroke_width(2), false)?;
-            text(
-                area,
-                name,
-                pixel((end.0 + 8.0 * dx - 4.0, end.1 - 8.0 * dy - 8.0)),
-                13,
-                TEXT,
-                false,
-                HPos::Left,
-            )?;
-        }
     }
     Ok(())
 }

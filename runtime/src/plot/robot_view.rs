@@ -554,7 +554,8 @@ fn check_common(active_below: f64, camera: Option<Camera>) -> Result<(), String>
 /// Draws `<stem>.png` and `<stem>.svg` in `out_dir` (created if missing) and returns
 /// their paths: one row per run of `panels` (title, record with `model`'s coordinates and
 /// barriers), one column per snapshot time, and a zoom on each run's final state. The
-/// figure is `270·snapshots + 400` pixels wide (at least 900) and `40 + 514·runs + 86` high.
+/// figure is `270·snapshots + 400` pixels wide (at least 900) and `40 + 514·runs` high plus
+/// the legend: 76 pixels with 4 or more snapshots, 104 with 3, 132 with fewer.
 pub fn draw_robot_views(
     out_dir: &Path,
     stem: &str,
