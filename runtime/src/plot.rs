@@ -21,6 +21,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 mod draw;
+pub mod robot_view;
 mod series;
 
 use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, SVGBackend};

@@ -1,0 +1,1042 @@
+//! Drawing the robot views and animation frames on a plotters backend: the painter's
+//! algorithm for one robot, the cells, the edge-on zoom with its gap, legends and captions.
+
+use plotters::coord::Shift;
+use plotters::element::DashedPathElement;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::super::FONT;
+use super::shape::{self, Point, Projection, Rect, Shape};
+use super::{Camera, Scene, Snapshot, lowest, zoom_camera};
+use crate::model::Model;
+
+/// Width of a snapshot cell \[px\].
+pub(super) const CELL_WIDTH: u32 = 270;
+/// Width of the zoom cell \[px\].
+pub(super) const ZOOM_WIDTH: u32 = 400;
+/// Height of a row's cells \[px\].
+pub(super) const CELL_HEIGHT: u32 = 480;
+/// Height of the figure title band and of a row's title band \[px\].
+pub(super) const TITLE_HEIGHT: u32 = 40;
+pub(super) const ROW_TITLE_HEIGHT: u32 = 34;
+/// Width of the legend's right block (scale bar, camera, axes) and of one of its
+/// columns of entries \[px\].
+const LEGEND_RIGHT: u32 = 290;
+const LEGEND_COLUMN: u32 = 290;
+/// Entries of the legend.
+const LEGEND_ENTRIES: u32 = 8;
+
+/// Columns of legend entries in a figure `width` pixels wide (1 to 4).
+fn legend_columns(width: u32) -> u32 {
+    (width.saturating_sub(LEGEND_RIGHT) / LEGEND_COLUMN).clamp(1, 4)
+}
+
+/// Height of the legend strip of a figure `width` pixels wide \[px\]: 28 per row of
+/// entries, at least the right block's 76.
+pub(super) fn legend_height(width: u32) -> u32 {
+    (20 + 28 * LEGEND_ENTRIES.div_ceil(legend_columns(width))).max(76)
+}
+/// Room for the captions at the top of a cell \[px\].
+pub(super) const CAPTION_HEIGHT: f64 = 46.0;
+/// Room for the zoom's annotation at the bottom \[px\].
+pub(super) const ZOOM_NOTE_HEIGHT: f64 = 58.0;
+/// Animation cell size \[px\].
+pub(super) const FRAME_CELL: (u32, u32) = (440, 470);
+/// Height of the animation's bottom strip (time line and legend) \[px\].
+pub(super) const FRAME_STRIP: u32 = 64;
+
+pub(super) const BACKBONE: RGBColor = RGBColor(30, 30, 30);
+pub(super) const TENDON: RGBColor = RGBColor(166, 118, 29);
+pub(super) const PLATE_FILL: RGBColor = RGBColor(198, 219, 239);
+pub(super) const PLATE_EDGE: RGBColor = RGBColor(33, 102, 172);
+pub(super) const BASE_FILL: RGBColor = RGBColor(189, 189, 189);
+pub(super) const BASE_EDGE: RGBColor = RGBColor(82, 82, 82);
+pub(super) const ACTIVE: RGBColor = RGBColor(230, 145, 0);
+pub(super) const VIOLATED: RGBColor = RGBColor(204, 30, 30);
+pub(super) const CLEAR: RGBColor = RGBColor(0, 140, 100);
+pub(super) const BAND: RGBColor = RGBColor(253, 219, 199);
+pub(super) const FRAME: RGBColor = RGBColor(210, 210, 210);
+pub(super) const TEXT: RGBColor = RGBColor(20, 20, 20);
+pub(super) const MUTED: RGBColor = RGBColor(100, 100, 100);
+
+/// Every colour the drawings use (the animation's palette starts with these).
+pub(super) const COLOURS: [RGBColor; 15] = [
+    WHITE, BLACK, BACKBONE, TENDON, PLATE_FILL, PLATE_EDGE, BASE_FILL, BASE_EDGE, ACTIVE, VIOLATED,
+    CLEAR, BAND, FRAME, TEXT, MUTED,
+];
+
+/// Screen coordinates of world points in one cell: projection, centre and scale.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Mapping {
+    pub projection: Projection,
+    /// Screen coordinates \[m\] drawn at the centre of `rect`.
+    pub centre: (f64, f64),
+    /// Pixels per metre.
+    pub scale: f64,
+    /// The drawing's pixels, in the cell's coordinates.
+    pub rect: Rect,
+}
+
+impl Mapping {
+    /// Pixel position and depth of `p`.
+    fn pixel(&self, p: Point) -> (f64, f64, f64) {
+        let (x, y, depth) = self.projection.project(p);
+        let cx = 0.5 * (self.rect.x0 + self.rect.x1);
+        let cy = 0.5 * (self.rect.y0 + self.rect.y1);
+        (
+            cx + self.scale * (x - self.centre.0),
+            cy - self.scale * (y - self.centre.1),
+            depth,
+        )
+    }
+
+    fn xy(&self, p: Point) -> (f64, f64) {
+        let (x, y, _) = self.pixel(p);
+        (x, y)
+    }
+}
+
+/// The extent `(x range, y range)` \[m\] of shapes seen through `projection`.
+pub(super) fn extent<'s>(
+    shapes: impl Iterator<Item = &'s Shape>,
+    projection: &Projection,
+) -> Option<((f64, f64), (f64, f64))> {
+    let mut bounds: Option<((f64, f64), (f64, f64))> = None;
+    for p in shapes.flat_map(Shape::points) {
+        let (x, y, _) = projection.project(p);
+        if !(x.is_finite() && y.is_finite()) {
+            continue;
+        }
+        let b = bounds.get_or_insert(((x, x), (y, y)));
+        b.0 = (b.0.0.min(x), b.0.1.max(x));
+        b.1 = (b.1.0.min(y), b.1.1.max(y));
+    }
+    bounds
+}
+
+/// The mapping that fits `bounds` into `rect` with equal scales and a small margin.
+pub(super) fn fit(projection: Projection, bounds: ((f64, f64), (f64, f64)), rect: Rect) -> Mapping {
+    let (width, height) = (bounds.0.1 - bounds.0.0, bounds.1.1 - bounds.1.0);
+    let room = ((rect.x1 - rect.x0) * 0.92, (rect.y1 - rect.y0) * 0.92);
+    let scale = (room.0 / width.max(1e-6)).min(room.1 / height.max(1e-6));
+    Mapping {
+        projection,
+        centre: (
+            0.5 * (bounds.0.0 + bounds.0.1),
+            0.5 * (bounds.1.0 + bounds.1.1),
+        ),
+        scale,
+        rect,
+    }
+}
+
+pub(super) type DrawResult = Result<(), String>;
+
+pub(super) fn pixel(p: (f64, f64)) -> (i32, i32) {
+    (p.0.round() as i32, p.1.round() as i32)
+}
+
+/// Draws the segment `a`–`b` (pixels) clipped to `rect`.
+pub(super) fn segment<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    a: (f64, f64),
+    b: (f64, f64),
+    rect: &Rect,
+    style: ShapeStyle,
+    dashed: bool,
+) -> DrawResult {
+    let Some((a, b)) = shape::clip_segment(a, b, rect) else {
+        return Ok(());
+    };
+    let points = [pixel(a), pixel(b)];
+    let result = if dashed {
+        area.draw(&DashedPathElement::new(points, 5, 4, style))
+    } else {
+        area.draw(&PathElement::new(points.to_vec(), style))
+    };
+    result.map_err(|e| e.to_string())
+}
+
+/// Draws a filled polygon with its outline, clipped to `rect`.
+pub(super) fn polygon<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    points: &[(f64, f64)],
+    rect: &Rect,
+    fill: RGBColor,
+    edge: Option<(RGBColor, u32)>,
+) -> DrawResult {
+    let clipped = shape::clip_polygon(points, rect);
+    if clipped.len() >= 3 {
+        let pixels: Vec<(i32, i32)> = clipped.iter().copied().map(pixel).collect();
+        area.draw(&Polygon::new(pixels, fill.filled()))
+            .map_err(|e| e.to_string())?;
+    }
+    if let Some((colour, width)) = edge {
+        for k in 0..points.len() {
+            let next = points[(k + 1) % points.len()];
+            segment(
+                area,
+                points[k],
+                next,
+                rect,
+                colour.stroke_width(width),
+                false,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn text<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    content: &str,
+    at: (i32, i32),
+    size: u32,
+    colour: RGBColor,
+    bold: bool,
+    anchor: HPos,
+) -> DrawResult {
+    let style = if bold {
+        FontStyle::Bold
+    } else {
+        FontStyle::Normal
+    };
+    let font = TextStyle::from((FONT, size, style).into_font())
+        .color(&colour)
+        .pos(Pos::new(anchor, VPos::Top));
+    area.draw(&Text::new(content.to_string(), at, font))
+        .map_err(|e| e.to_string())
+}
+
+/// What the painter's algorithm draws, far to near.
+pub(super) enum Piece {
+    Plate(usize),
+    Backbone(usize, usize),
+    Tendon(usize, usize, usize),
+}
+
+/// Draws the robot of `shape` through `mapping`: plates, backbones and tendons from far to
+/// near, then the highlighted corners of `snapshot` on top with their drops to the plate
+/// below. With `only = Some(i)`, just module `i` (0-based): its segment and the plates at
+/// its two ends. `thin` draws lines narrower (the animation's smaller cells).
+pub(super) fn draw_robot<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    shape: &Shape,
+    snapshot: &Snapshot,
+    mapping: &Mapping,
+    only: Option<usize>,
+    thin: bool,
+) -> DrawResult {
+    let rect = &mapping.rect;
+    let mut pieces: Vec<(f64, Piece)> = Vec::new();
+    let depth = |points: &[Point]| {
+        points.iter().map(|&p| mapping.pixel(p).2).sum::<f64>() / points.len().max(1) as f64
+    };
+    let module_shown = |i: usize| only.is_none_or(|m| m == i);
+    for (k, plate) in shape.plates.iter().enumerate() {
+        if only.is_none_or(|m| k == m || k == m + 1) {
+            pieces.push((depth(plate), Piece::Plate(k)));
+        }
+    }
+    for (i, backbone) in shape.backbones.iter().enumerate() {
+        if !module_shown(i) {
+            continue;
+        }
+        for k in 1..backbone.len() {
+            pieces.push((depth(&backbone[k - 1..=k]), Piece::Backbone(i, k)));
+        }
+    }
+    for (i, tendons) in shape.tendons.iter().enumerate() {
+        if !module_shown(i) {
+            continue;
+        }
+        for (t, tendon) in tendons.iter().enumerate() {
+            for k in 1..tendon.len() {
+                pieces.push((depth(&tendon[k - 1..=k]), Piece::Tendon(i, t, k)));
+            }
+        }
+    }
+    pieces.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (backbone_width, tendon_width, edge_width) = if thin { (2, 1, 1) } else { (3, 1, 2) };
+    for (_, piece) in &pieces {
+        match *piece {
+            Piece::Plate(k) => {
+                let points: Vec<(f64, f64)> =
+                    shape.plates[k].iter().map(|&p| mapping.xy(p)).collect();
+                let (fill, edge) = if k == 0 {
+                    (BASE_FILL, BASE_EDGE)
+                } else {
+                    (PLATE_FILL, PLATE_EDGE)
+                };
+                polygon(area, &points, rect, fill, Some((edge, edge_width)))?;
+            }
+            Piece::Backbone(i, k) => {
+                let line = &shape.backbones[i];
+                segment(
+                    area,
+                    mapping.xy(line[k - 1]),
+                    mapping.xy(line[k]),
+                    rect,
+                    BACKBONE.stroke_width(backbone_width),
+                    false,
+                )?;
+            }
+            Piece::Tendon(i, t, k) => {
+                let line = &shape.tendons[i][t];
+                segment(
+                    area,
+                    mapping.xy(line[k - 1]),
+                    mapping.xy(line[k]),
+                    rect,
+                    TENDON.stroke_width(tendon_width),
+                    false,
+                )?;
+            }
+        }
+    }
+    for &j in &snapshot.active {
+        let Some(gap) = shape.corners.get(j).filter(|g| module_shown(g.module)) else {
+            continue;
+        };
+        let colour = if snapshot.violated.contains(&j) {
+            VIOLATED
+        } else {
+            ACTIVE
+        };
+        let corner = mapping.xy(gap.corner);
+        let foot = mapping.xy(gap.foot);
+        segment(area, corner, foot, rect, colour.stroke_width(2), true)?;
+        if inside(foot, rect) {
+            area.draw(&Circle::new(pixel(foot), 2, colour.filled()))
+                .map_err(|e| e.to_string())?;
+        }
+        if inside(corner, rect) {
+            let radius = if thin { 4 } else { 6 };
+            area.draw(&Circle::new(pixel(corner), radius, colour.filled()))
+                .map_err(|e| e.to_string())?;
+            area.draw(&Circle::new(pixel(corner), radius, BLACK.stroke_width(1)))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn inside(p: (f64, f64), rect: &Rect) -> bool {
+    p.0 >= rect.x0 && p.0 <= rect.x1 && p.1 >= rect.y0 && p.1 <= rect.y1
+}
+
+/// `t` in seconds to the millisecond, without trailing zeros: `0.16 s`, `10 s`.
+pub(super) fn format_time(t: f64) -> String {
+    let text = format!("{t:.3}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    let text = if text == "-0" { "0" } else { text };
+    format!("{} s", text.replace('-', "−"))
+}
+
+/// A length in millimetres with a sign, `+0.00 mm`.
+pub(super) fn format_mm(value: f64) -> String {
+    let mm = 1000.0 * value;
+    if mm.abs() < 0.005 {
+        "0.00 mm".to_string()
+    } else {
+        format!("{mm:+.2} mm").replace('-', "−")
+    }
+}
+
+/// Captions of a snapshot cell: the time (and the time asked, when the record has no row
+/// near it) and the lowest barrier.
+pub(super) fn captions(scene: &Scene, model: &Model) -> (String, String) {
+    let snapshot = &scene.snapshot;
+    if snapshot.row.is_none() || scene.shape.is_none() {
+        return (
+            format!("t = {}", format_time(snapshot.asked)),
+            "no finite state in the record".to_string(),
+        );
+    }
+    let mut first = format!("t = {}", format_time(snapshot.t));
+    let tolerance = 1e-6 * snapshot.asked.abs().max(1.0);
+    if (snapshot.t - snapshot.asked).abs() > tolerance.max(0.5e-3) {
+        first.push_str(&format!(" (asked {})", format_time(snapshot.asked)));
+    }
+    let second = match lowest(snapshot) {
+        Some((j, b)) => {
+            let label = model
+                .generated
+                .barrier_table()
+                .get(j)
+                .map(|info| short_label(info.module, info.point))
+                .unwrap_or_default();
+            format!("lowest b = {} ({label})", format_mm(b))
+        }
+        None => "no barrier".to_string(),
+    };
+    (first, second)
+}
+
+/// `m1 c3`: module and corner, 1-based.
+pub(super) fn short_label(module: usize, point: usize) -> String {
+    format!("m{} c{}", module + 1, point + 1)
+}
+
+/// The zoom on a final state: its mapping and the barrier it annotates.
+pub(super) struct Zoom {
+    mapping: Mapping,
+    barrier: usize,
+}
+
+/// Half the side of the zoom window \[m\], the same for every run: room for the largest
+/// corner height and its margin, and at least half a corner radius.
+pub(super) fn zoom_half_size(scenes: &[&Scene], model: &Model) -> f64 {
+    let radius = model
+        .robot
+        .modules
+        .iter()
+        .map(|m| m.corner_radius)
+        .fold(0.0, f64::max);
+    let mut half = 0.5 * radius;
+    for scene in scenes {
+        if let (Some(shape), Some((j, _))) = (&scene.shape, lowest(&scene.snapshot))
+            && let Some(gap) = shape.corners.get(j)
+        {
+            half = half.max(0.8 * gap.height.abs() + gap.margin + 0.006);
+        }
+    }
+    half
+}
+
+pub(super) fn zoom(scene: &Scene, main: &Projection, half: f64, rect: Rect) -> Option<Zoom> {
+    let shape = scene.shape.as_ref()?;
+    let (barrier, _) = lowest(&scene.snapshot)?;
+    let projection = zoom_camera(shape, barrier, main)?;
+    let gap = shape.corners.get(barrier)?;
+    let (cx, cy, _) = projection.project(gap.corner);
+    let (fx, fy, _) = projection.project(gap.foot);
+    let side = (rect.x1 - rect.x0).min(rect.y1 - rect.y0);
+    Some(Zoom {
+        mapping: Mapping {
+            projection,
+            centre: (0.5 * (cx + fx), 0.5 * (cy + fy)),
+            scale: side / (2.0 * half),
+            rect,
+        },
+        barrier,
+    })
+}
+
+/// Draws the zoom on a final state: the margin band above the lower plate, the robot, and
+/// the lowest barrier as a dimension line with its value.
+pub(super) fn draw_zoom<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    scene: &Scene,
+    zoom: &Zoom,
+    active_below: f64,
+    model: &Model,
+) -> DrawResult {
+    let Some(shape) = &scene.shape else {
+        return Ok(());
+    };
+    let Some(gap) = shape.corners.get(zoom.barrier) else {
+        return Ok(());
+    };
+    let mapping = &zoom.mapping;
+    let rect = &mapping.rect;
+    let lower = gap.module;
+    let normal = shape::rotate(&shape.poses[lower], [0.0, 0.0, 1.0]);
+    let lift = |p: Point, h: f64| {
+        [
+            p[0] + h * normal[0],
+            p[1] + h * normal[1],
+            p[2] + h * normal[2],
+        ]
+    };
+    // The plane of the plate below, edge-on, across the window, and the margin above it.
+    let reach = 4.0 * (rect.x1 - rect.x0 + rect.y1 - rect.y0) / mapping.scale;
+    let along = mapping.projection.right;
+    let across = |h: f64, side: f64| {
+        mapping.xy(lift(
+            [
+                gap.foot[0] + side * reach * along[0],
+                gap.foot[1] + side * reach * along[1],
+                gap.foot[2] + side * reach * along[2],
+            ],
+            h,
+        ))
+    };
+    let band = [
+        across(0.0, -1.0),
+        across(0.0, 1.0),
+        across(gap.margin, 1.0),
+        across(gap.margin, -1.0),
+    ];
+    polygon(area, &band, rect, BAND, None)?;
+    segment(
+        area,
+        across(0.0, -1.0),
+        across(0.0, 1.0),
+        rect,
+        MUTED.stroke_width(1),
+        true,
+    )?;
+    draw_robot(area, shape, &scene.snapshot, mapping, Some(lower), false)?;
+    let b = scene
+        .snapshot
+        .b
+        .get(zoom.barrier)
+        .copied()
+        .unwrap_or(f64::NAN);
+    let colour = if b < 0.0 {
+        VIOLATED
+    } else if b <= active_below {
+        ACTIVE
+    } else {
+        CLEAR
+    };
+    let corner = mapping.xy(gap.corner);
+    let top = mapping.xy(lift(gap.foot, gap.margin));
+    let foot = mapping.xy(gap.foot);
+    segment(area, foot, top, rect, MUTED.stroke_width(1), false)?;
+    segment(area, corner, top, rect, colour.stroke_width(3), false)?;
+    for end in [corner, top] {
+        segment(
+            area,
+            (end.0 - 7.0, end.1),
+            (end.0 + 7.0, end.1),
+            rect,
+            colour.stroke_width(2),
+            false,
+        )?;
+    }
+    // The value beside the dimension line, on the side away from the upper plate.
+    let upper = mapping.xy(shape::apply(&shape.poses[lower + 1], [0.0; 3]));
+    let (anchor, dx) = if upper.0 > corner.0 {
+        (HPos::Right, -12.0)
+    } else {
+        (HPos::Left, 12.0)
+    };
+    let label_at = (
+        (0.5 * (corner.0 + top.0) + dx).clamp(rect.x0 + 130.0, rect.x1 - 130.0),
+        (0.5 * (corner.1 + top.1) - 9.0).clamp(rect.y0, rect.y1 - 20.0),
+    );
+    text(
+        area,
+        &format!("b = {}", format_mm(b)),
+        pixel(label_at),
+        16,
+        colour,
+        true,
+        anchor,
+    )?;
+    // Scale bar: 10 mm (or the round length nearest a fifth of the window).
+    let bar = nice_length(0.2 * (rect.x1 - rect.x0) / mapping.scale);
+    let y = rect.y1 - 10.0;
+    let x0 = rect.x0 + 10.0;
+    segment(
+        area,
+        (x0, y),
+        (x0 + bar * mapping.scale, y),
+        rect,
+        BLACK.stroke_width(2),
+        false,
+    )?;
+    text(
+        area,
+        &format!("{} mm", (bar * 1000.0).round()),
+        pixel((x0, y - 20.0)),
+        13,
+        TEXT,
+        false,
+        HPos::Left,
+    )?;
+    let info = model.generated.barrier_table().get(zoom.barrier);
+    let label = info.map(|i| i.label).unwrap_or("");
+    let (w, h) = area.dim_in_pixel();
+    let note_top = h as f64 - ZOOM_NOTE_HEIGHT + 6.0;
+    let status = if b < 0.0 {
+        "below its margin"
+    } else if b <= active_below {
+        "on its margin"
+    } else {
+        "clear"
+    };
+    text(
+        area,
+        &format!("lowest: {label}, {status}"),
+        (8, note_top as i32),
+        14,
+        TEXT,
+        true,
+        HPos::Left,
+    )?;
+    text(
+        area,
+        &format!(
+            "height above plate {} c = {}, margin ε = {}",
+            gap.module,
+            format_mm(gap.height).trim_start_matches('+'),
+            format_mm(gap.margin).trim_start_matches('+')
+        ),
+        (8, note_top as i32 + 20),
+        13,
+        MUTED,
+        false,
+        HPos::Left,
+    )?;
+    let _ = w;
+    Ok(())
+}
+
+/// A round length (1, 2 or 5 × 10ⁿ m) near `length`.
+pub(super) fn nice_length(length: f64) -> f64 {
+    if !(length.is_finite() && length > 0.0) {
+        return 0.01;
+    }
+    let unit = 10f64.powf(length.log10().floor());
+    let mantissa = length / unit;
+    let step = if mantissa < 1.5 {
+        1.0
+    } else if mantissa < 3.5 {
+        2.0
+    } else if mantissa < 7.5 {
+        5.0
+    } else {
+        10.0
+    };
+    step * unit
+}
+
+/// Everything one figure draws.
+pub(super) struct Figure<'a> {
+    pub model: &'a Model,
+    pub titles: Vec<&'a str>,
+    pub scenes: Vec<Vec<Scene>>,
+    /// The final state of each run.
+    pub finals: Vec<Scene>,
+    pub projection: Projection,
+    pub camera: Camera,
+    pub active_below: f64,
+}
+
+impl Figure<'_> {
+    fn columns(&self) -> usize {
+        self.scenes.first().map_or(0, Vec::len)
+    }
+
+    pub(super) fn size(&self) -> (u32, u32) {
+        let width = (CELL_WIDTH * self.columns() as u32 + ZOOM_WIDTH).max(900);
+        let rows = self.scenes.len() as u32;
+        (
+            width,
+            TITLE_HEIGHT + rows * (ROW_TITLE_HEIGHT + CELL_HEIGHT) + legend_height(width),
+        )
+    }
+}
+
+pub(super) fn draw_figure<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    figure: &Figure,
+) -> DrawResult {
+    let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let (width, height) = root.dim_in_pixel();
+    let (header, rest) = root.split_vertically(TITLE_HEIGHT);
+    let (rows, legend) = rest.split_vertically(height - TITLE_HEIGHT - legend_height(width));
+    text(
+        &header,
+        &format!(
+            "{}: the robot at {} snapshot times and its final gaps",
+            figure.model.robot.name,
+            figure.columns(),
+        ),
+        (12, 10),
+        19,
+        TEXT,
+        true,
+        HPos::Left,
+    )?;
+    // One scale for every snapshot cell: the extent of all of them.
+    let all = figure
+        .scenes
+        .iter()
+        .flatten()
+        .filter_map(|s| s.shape.as_ref());
+    let cell_rect = Rect {
+        x0: 4.0,
+        y0: CAPTION_HEIGHT,
+        x1: CELL_WIDTH as f64 - 4.0,
+        y1: CELL_HEIGHT as f64 - 6.0,
+    };
+    let bounds = extent(all, &figure.projection).unwrap_or(((-0.1, 0.1), (0.0, 0.2)));
+    let mapping = fit(figure.projection, bounds, cell_rect);
+    let zoom_rect = Rect {
+        x0: 4.0,
+        y0: CAPTION_HEIGHT,
+        x1: ZOOM_WIDTH as f64 - 4.0,
+        y1: CELL_HEIGHT as f64 - ZOOM_NOTE_HEIGHT,
+    };
+    let finals: Vec<&Scene> = figure.finals.iter().collect();
+    let half = zoom_half_size(&finals, figure.model);
+    let row_areas = rows.split_evenly((figure.scenes.len().max(1), 1));
+    for ((title, scenes), (area, last)) in figure
+        .titles
+        .iter()
+        .zip(&figure.scenes)
+        .zip(row_areas.iter().zip(&figure.finals))
+    {
+        let (band, cells) = area.split_vertically(ROW_TITLE_HEIGHT);
+        band.fill(&RGBColor(243, 243, 243)).map_err(e)?;
+        text(&band, title, (12, 6), 20, TEXT, true, HPos::Left)?;
+        let (snapshots, zoom_area) = cells.split_horizontally(CELL_WIDTH * scenes.len() as u32);
+        for (scene, cell) in scenes
+            .iter()
+            .zip(snapshots.split_evenly((1, scenes.len().max(1))).iter())
+        {
+            draw_cell_frame(cell)?;
+            let (first, second) = captions(scene, figure.model);
+            text(cell, &first, (10, 6), 17, TEXT, true, HPos::Left)?;
+            text(cell, &second, (10, 27), 13, MUTED, false, HPos::Left)?;
+            if let Some(shape) = &scene.shape {
+                draw_robot(cell, shape, &scene.snapshot, &mapping, None, false)?;
+            }
+        }
+        draw_cell_frame(&zoom_area)?;
+        let caption = if last.snapshot.row.is_some() {
+            format!("end, t = {}: gap, edge-on", format_time(last.snapshot.t))
+        } else {
+            "end: no finite state".to_string()
+        };
+        text(&zoom_area, &caption, (10, 6), 17, TEXT, true, HPos::Left)?;
+        match zoom(last, &figure.projection, half, zoom_rect) {
+            Some(z) => {
+                text(
+                    &zoom_area,
+                    &format!(
+                        "along the bend axis of module {}, {:.1}× the snapshots",
+                        figure
+                            .model
+                            .generated
+                            .barrier_table()
+                            .get(z.barrier)
+                            .map_or(0, |i| i.module + 1),
+                        z.mapping.scale / mapping.scale
+                    ),
+                    (10, 27),
+                    13,
+                    MUTED,
+                    false,
+                    HPos::Left,
+                )?;
+                draw_zoom(&zoom_area, last, &z, figure.active_below, figure.model)?;
+            }
+            None => {
+                text(
+                    &zoom_area,
+                    "nothing to zoom on",
+                    (10, 27),
+                    13,
+                    MUTED,
+                    false,
+                    HPos::Left,
+                )?;
+            }
+        }
+    }
+    draw_legend(&legend, figure.active_below, &mapping, figure.camera)?;
+    Ok(())
+}
+
+pub(super) fn draw_cell_frame<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>) -> DrawResult {
+    let (w, h) = cell.dim_in_pixel();
+    cell.draw(&Rectangle::new(
+        [(0, 0), (w as i32 - 1, h as i32 - 1)],
+        FRAME.stroke_width(1),
+    ))
+    .map_err(|e| e.to_string())
+}
+
+/// The legend strip: one entry per kind of line and mark (in as many columns as fit),
+/// then at the right the scale bar of the snapshot cells, the camera and the world axes
+/// as it sees them.
+pub(super) fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    active_below: f64,
+    mapping: &Mapping,
+    camera: Camera,
+) -> DrawResult {
+    let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
+    let (width, height) = area.dim_in_pixel();
+    let rect = Rect {
+        x0: 0.0,
+        y0: 0.0,
+        x1: width as f64,
+        y1: height as f64,
+    };
+    let active = format!(
+        "corner with b ≤ {}",
+        format_mm(active_below).trim_start_matches('+')
+    );
+    let entries: [(&str, u8); LEGEND_ENTRIES as usize] = [
+        ("backbone (PCC arc)", 0),
+        ("tendon", 1),
+        ("plate", 2),
+        ("base plate", 3),
+        (active.as_str(), 4),
+        ("corner with b < 0", 5),
+        ("drop to the plate below", 6),
+        ("margin ε over the plane below", 7),
+    ];
+    let columns = legend_columns(width) as i32;
+    for (k, (label, kind)) in entries.iter().enumerate() {
+        let x = 14 + LEGEND_COLUMN as i32 * (k as i32 % columns);
+        let y = 12 + 28 * (k as i32 / columns);
+        let (xf, yf) = (x as f64, y as f64 + 8.0);
+        let line = |colour: RGBColor, width: u32, dashed: bool| {
+            segment(
+                area,
+                (xf, yf),
+                (xf + 34.0, yf),
+                &rect,
+                colour.stroke_width(width),
+                dashed,
+            )
+        };
+        match kind {
+            0 => line(BACKBONE, 3, false)?,
+            1 => line(TENDON, 1, false)?,
+            2 | 3 | 7 => {
+                let (fill, edge) = match kind {
+                    2 => (PLATE_FILL, Some((PLATE_EDGE, 2))),
+                    3 => (BASE_FILL, Some((BASE_EDGE, 2))),
+                    _ => (BAND, None),
+                };
+                let points = [
+                    (xf, yf + 6.0),
+                    (xf + 10.0, yf - 6.0),
+                    (xf + 34.0, yf - 6.0),
+                    (xf + 24.0, yf + 6.0),
+                ];
+                polygon(area, &points, &rect, fill, edge)?;
+            }
+            4 | 5 => {
+                let colour = if *kind == 4 { ACTIVE } else { VIOLATED };
+                let c = (x + 17, y + 8);
+                area.draw(&Circle::new(c, 6, colour.filled())).map_err(e)?;
+                area.draw(&Circle::new(c, 6, BLACK.stroke_width(1)))
+                    .map_err(e)?;
+            }
+            _ => line(ACTIVE, 2, true)?,
+        }
+        text(area, label, (x + 44, y), 15, TEXT, false, HPos::Left)?;
+    }
+    // The right block: scale bar, camera, axes.
+    let left = width as f64 - LEGEND_RIGHT as f64 + 10.0;
+    let bar = nice_length(60.0 / mapping.scale);
+    let bar_end = left + bar * mapping.scale;
+    segment(
+        area,
+        (left, 20.0),
+        (bar_end, 20.0),
+        &rect,
+        BLACK.stroke_width(2),
+        false,
+    )?;
+    text(
+        area,
+        &format!("{} mm", (bar * 1000.0).round()),
+        pixel((bar_end + 8.0, 12.0)),
+        13,
+        TEXT,
+        false,
+        HPos::Left,
+    )?;
+    let degrees = |v: f64| format!("{v:.0}°").replace('-', "−");
+    for (k, line) in [
+        "orthographic view, equal scales,".to_string(),
+        format!(
+            "azimuth {}, elevation {}",
+            degrees(camera.azimuth_deg),
+            degrees(camera.elevation_deg)
+        ),
+    ]
+    .iter()
+    .enumerate()
+    {
+        text(
+            area,
+            line,
+            (left as i32, 32 + 17 * k as i32),
+            12,
+            MUTED,
+            false,
+            HPos::Left,
+        )?;
+    }
+    let origin = (width as f64 - 40.0, 42.0);
+    for (axis, name) in [
+        ([1.0, 0.0, 0.0], "x"),
+        ([0.0, 1.0, 0.0], "y"),
+        ([0.0, 0.0, 1.0], "z"),
+    ] {
+        let (dx, dy, _) = mapping.projection.project(axis);
+        let end = (origin.0 + 22.0 * dx, origin.1 - 22.0 * dy);
+        segment(area, origin, end, &rect, MUTED.stroke_width(2), false)?;
+        text(
+            area,
+            name,
+            pixel((end.0 + 8.0 * dx - 4.0, end.1 - 8.0 * dy - 8.0)),
+            13,
+            TEXT,
+            false,
+            HPos::Left,
+        )?;
+    }
+    Ok(())
+}
+
+/// What one animation frame shows.
+pub(super) struct AnimationFrame<'a> {
+    pub model: &'a Model,
+    pub titles: &'a [&'a str],
+    pub scenes: &'a [&'a Scene],
+    pub mapping: &'a Mapping,
+    pub t: f64,
+    pub span: (f64, f64),
+    /// Robot seconds per second of playback.
+    pub speed: f64,
+    pub active_below: f64,
+}
+
+pub(super) fn draw_frame<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    frame: &AnimationFrame,
+) -> DrawResult {
+    let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let (width, height) = root.dim_in_pixel();
+    let (header, rest) = root.split_vertically(TITLE_HEIGHT);
+    let (cells, strip) = rest.split_vertically(height - TITLE_HEIGHT - FRAME_STRIP);
+    let speed = if frame.speed.is_finite() && frame.speed > 0.0 {
+        format!("  (playing at {:.2}× real time)", frame.speed)
+    } else {
+        String::new()
+    };
+    text(
+        &header,
+        &format!(
+            "{}: t = {}{speed}",
+            frame.model.robot.name,
+            format_time(frame.t)
+        ),
+        (12, 10),
+        18,
+        TEXT,
+        true,
+        HPos::Left,
+    )?;
+    for ((title, scene), cell) in frame
+        .titles
+        .iter()
+        .zip(frame.scenes)
+        .zip(cells.split_evenly((1, frame.scenes.len().max(1))).iter())
+    {
+        draw_cell_frame(cell)?;
+        text(cell, title, (10, 6), 16, TEXT, true, HPos::Left)?;
+        let (_, second) = captions(scene, frame.model);
+        text(cell, &second, (10, 28), 13, MUTED, false, HPos::Left)?;
+        if let Some(shape) = &scene.shape {
+            draw_robot(cell, shape, &scene.snapshot, frame.mapping, None, true)?;
+        }
+    }
+    // Time line.
+    let (t0, t1) = frame.span;
+    let share = if t1 > t0 {
+        ((frame.t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let x0 = 14.0;
+    let x1 = width as f64 - 14.0;
+    let rect = Rect {
+        x0: 0.0,
+        y0: 0.0,
+        x1: width as f64,
+        y1: FRAME_STRIP as f64,
+    };
+    segment(
+        &strip,
+        (x0, 10.0),
+        (x1, 10.0),
+        &rect,
+        FRAME.stroke_width(4),
+        false,
+    )?;
+    segment(
+        &strip,
+        (x0, 10.0),
+        (x0 + share * (x1 - x0), 10.0),
+        &rect,
+        PLATE_EDGE.stroke_width(4),
+        false,
+    )?;
+    text(
+        &strip,
+        &format_time(t0),
+        (14, 18),
+        12,
+        MUTED,
+        false,
+        HPos::Left,
+    )?;
+    text(
+        &strip,
+        &format_time(t1),
+        (width as i32 - 14, 18),
+        12,
+        MUTED,
+        false,
+        HPos::Right,
+    )?;
+    let active = format!(
+        "orange: corner with b ≤ {}   red: b < 0   dashed: drop to the plate below",
+        format_mm(frame.active_below).trim_start_matches('+')
+    );
+    text(
+        &strip,
+        &active,
+        (width as i32 / 2, 36),
+        13,
+        TEXT,
+        false,
+        HPos::Center,
+    )?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_read_without_trailing_zeros() {
+        assert_eq!(format_time(0.16), "0.16 s");
+        assert_eq!(format_time(10.0), "10 s");
+        assert_eq!(format_time(0.0), "0 s");
+        assert_eq!(format_time(-0.0001), "0 s");
+        assert_eq!(format_time(2.5004), "2.5 s");
+    }
+
+    #[test]
+    fn nice_lengths_are_one_two_or_five() {
+        assert_eq!(nice_length(0.012), 0.01);
+        assert!((nice_length(0.03) - 0.02).abs() < 1e-12);
+        assert!((nice_length(0.06) - 0.05).abs() < 1e-12);
+        assert_eq!(nice_length(f64::NAN), 0.01);
+    }
+
+    #[test]
+    fn millimetres_have_a_sign_except_zero() {
+        assert_eq!(format_mm(-0.02773), "−27.73 mm");
+        assert_eq!(format_mm(1e-9), "0.00 mm");
+        assert_eq!(format_mm(0.0051), "+5.10 mm");
+    }
+}
