@@ -36,7 +36,7 @@ use plotters::style::register_font;
 
 use crate::record::Record;
 use series::Range;
-pub use series::{display_name, envelope, nice_ceil, settle_time, window};
+pub use series::{display_name, envelope, excursion, nice_ceil, settle_time, window};
 pub use style::{
     DISTINCT_COORDINATES, LineStyle, PALETTE, SET_POINT_DASH, barrier_style, coordinate_style,
     module_dash,
@@ -111,8 +111,8 @@ const PLOT_MARGIN: u32 = 4;
 /// Line height of the labels of the barriers that reach zero \[px\].
 const LABEL_LINE: u32 = 17;
 
-/// Fraction of the largest excursion of a coordinate within which the motion counts as
-/// settled, for [`Split::Auto`].
+/// Fraction of the largest excursion of a coordinate over the run within which the motion
+/// counts as settled, for [`Split::Auto`].
 pub const SETTLE_FRACTION: f64 = 0.05;
 /// [`Split::Auto`] splits only if the transient takes at most this fraction of the window.
 pub const SPLIT_AT_MOST: f64 = 0.45;
@@ -250,6 +250,87 @@ fn windowed(times: &[f64], values: impl Iterator<Item = f64>, window: (f64, f64)
     series::window(times, &values, window.0, window.1).1
 }
 
+/// The time axis of a figure: its window \[s\] and where it splits, if it does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeAxis {
+    /// `(start, end)` \[s\].
+    pub window: (f64, f64),
+    /// The time \[s\] where the axis splits into the transient and the rest.
+    pub split: Option<f64>,
+}
+
+/// The time axis the figures of `panels` get with `options`: the window given, else the
+/// records' whole time span; the split per [`FigureOptions::split`]. Refuses a window that
+/// is empty, not finite or holds no row of some record, and a split outside the window.
+pub fn time_axis(
+    panels: &[(&str, &Record)],
+    options: &FigureOptions,
+) -> Result<TimeAxis, PlotError> {
+    let mut span = Range::EMPTY;
+    for (_, record) in panels {
+        span.cover(record.times());
+    }
+    let window = match options.time_range {
+        Some((start, end)) => {
+            if !(start.is_finite() && end.is_finite() && start < end) {
+                return Err(PlotError::Time(format!(
+                    "time range {start}..{end} s: the start must be below the end, both finite"
+                )));
+            }
+            (start, end)
+        }
+        None => {
+            let range = span.exact_or_padded();
+            (range.start, range.end)
+        }
+    };
+    let mut settled: Option<f64> = None;
+    // The time of the `SPLIT_MIN_ROWS`-th row in the window, over all records.
+    let mut enough_rows = window.0;
+    for (title, record) in panels {
+        let times: Vec<f64> = record.times().collect();
+        let clipped_times = series::window(&times, &times, window.0, window.1).0;
+        if clipped_times.is_empty() {
+            return Err(PlotError::Time(format!(
+                "record `{title}` has no rows in the time range {}..{} s",
+                window.0, window.1
+            )));
+        }
+        let n = record.columns().n();
+        // The tolerance is a fraction of the whole run's motion, so that a window after
+        // the motion has settled shows no transient.
+        let whole: Vec<Vec<f64>> = (0..n).map(|i| record.q(i).collect()).collect();
+        let tolerance = SETTLE_FRACTION * series::excursion(&whole);
+        let coordinates: Vec<Vec<f64>> = (0..n)
+            .map(|i| windowed(&times, record.q(i), window))
+            .collect();
+        let row = SPLIT_MIN_ROWS.min(clipped_times.len() - 1);
+        enough_rows = enough_rows.max(clipped_times[row]);
+        if let Some(time) = series::settle_time(&clipped_times, &coordinates, tolerance) {
+            settled = Some(settled.map_or(time, |s| s.max(time)));
+        }
+    }
+    let split = match options.split {
+        Split::Off => None,
+        Split::At(at) => {
+            if !(at.is_finite() && window.0 < at && at < window.1) {
+                return Err(PlotError::Time(format!(
+                    "split at {at} s: it must lie inside the time range {}..{} s",
+                    window.0, window.1
+                )));
+            }
+            Some(at)
+        }
+        Split::Auto => settled.and_then(|time| {
+            let at = window.0 + nice_ceil(time.max(enough_rows) - window.0);
+            let length = window.1 - window.0;
+            (time > window.0 && at - window.0 <= SPLIT_AT_MOST * length).then_some(at)
+        }),
+    };
+
+    Ok(TimeAxis { window, split })
+}
+
 impl<'a> Figure<'a> {
     fn new(
         panels: &'a [(&'a str, &'a Record)],
@@ -264,7 +345,6 @@ impl<'a> Figure<'a> {
             expected,
             found,
         };
-        let mut span = Range::EMPTY;
         for (title, record) in panels {
             if record.is_empty() {
                 return Err(PlotError::EmptyRecord {
@@ -278,7 +358,6 @@ impl<'a> Figure<'a> {
             if columns.m() != m {
                 return Err(mismatch(title, "the number of barriers", m, columns.m()));
             }
-            span.cover(record.times());
         }
         if !set_point.is_empty() && set_point.len() != n {
             return Err(mismatch(
@@ -288,20 +367,7 @@ impl<'a> Figure<'a> {
                 set_point.len(),
             ));
         }
-        let window = match options.time_range {
-            Some((start, end)) => {
-                if !(start.is_finite() && end.is_finite() && start < end) {
-                    return Err(PlotError::Time(format!(
-                        "time range {start}..{end} s: the start must be below the end, both finite"
-                    )));
-                }
-                (start, end)
-            }
-            None => {
-                let range = span.exact_or_padded();
-                (range.start, range.end)
-            }
-        };
+        let TimeAxis { window, split } = time_axis(panels, options)?;
         let per_module = if !options.barriers_per_module.is_empty() {
             options.barriers_per_module.to_vec()
         } else {
@@ -337,32 +403,14 @@ impl<'a> Figure<'a> {
         rows[0].cover(set_point.iter().copied());
         rows[2].cover([0.0]);
         rows[3].cover([0.0]);
-        let mut settled: Option<f64> = None;
-        // The time of the `SPLIT_MIN_ROWS`-th row in the window, over all records.
-        let mut enough_rows = window.0;
         let mut lowest = Vec::with_capacity(panels.len());
-        for (title, record) in panels {
+        for (_, record) in panels {
             let times: Vec<f64> = record.times().collect();
-            let clipped_times = series::window(&times, &times, window.0, window.1).0;
-            if clipped_times.is_empty() {
-                return Err(PlotError::Time(format!(
-                    "record `{title}` has no rows in the time range {}..{} s",
-                    window.0, window.1
-                )));
-            }
-            let mut coordinates = Vec::with_capacity(n);
             for i in 0..n {
-                let q = windowed(&times, record.q(i), window);
-                rows[0].cover(q.iter().copied());
-                coordinates.push(q);
+                rows[0].cover(windowed(&times, record.q(i), window));
                 rows[1].cover(windowed(&times, record.tau(i), window));
                 let action = record.tau(i).zip(record.tau_nom(i)).map(|(a, b)| a - b);
                 rows[2].cover(windowed(&times, action, window));
-            }
-            let row = SPLIT_MIN_ROWS.min(clipped_times.len() - 1);
-            enough_rows = enough_rows.max(clipped_times[row]);
-            if let Some(time) = series::settle_time(&clipped_times, &coordinates, SETTLE_FRACTION) {
-                settled = Some(settled.map_or(time, |s| s.max(time)));
             }
             let mut minima = Vec::with_capacity(m);
             for j in 0..m {
@@ -375,24 +423,6 @@ impl<'a> Figure<'a> {
             }
             lowest.push(minima);
         }
-        let split = match options.split {
-            Split::Off => None,
-            Split::At(at) => {
-                if !(at.is_finite() && window.0 < at && at < window.1) {
-                    return Err(PlotError::Time(format!(
-                        "split at {at} s: it must lie inside the time range {}..{} s",
-                        window.0, window.1
-                    )));
-                }
-                Some(at)
-            }
-            Split::Auto => settled.and_then(|time| {
-                let at = window.0 + nice_ceil(time.max(enough_rows) - window.0);
-                let length = window.1 - window.0;
-                (time > window.0 && at - window.0 <= SPLIT_AT_MOST * length).then_some(at)
-            }),
-        };
-
         let b_range = rows[3].padded();
         let tolerance = ACTIVE_TOLERANCE.max(0.002 * (b_range.end - b_range.start));
         let active: Vec<Vec<Active>> = lowest

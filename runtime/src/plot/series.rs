@@ -53,36 +53,43 @@ pub fn window(t: &[f64], y: &[f64], start: f64, end: f64) -> (Vec<f64>, Vec<f64>
     (times, values)
 }
 
-/// When a run's coordinates settle: the last time at which some coordinate is further than
-/// `fraction` of the largest coordinate's excursion from its final value (only finite
-/// values count). `series` holds each coordinate's values at the times `t`. `None` when
-/// there is no finite value.
-pub fn settle_time(t: &[f64], series: &[Vec<f64>], fraction: f64) -> Option<f64> {
-    let finite = |k: &usize, y: &Vec<f64>| {
-        t.get(*k).is_some_and(|x| x.is_finite()) && y.get(*k).is_some_and(|v| v.is_finite())
+/// When a run's coordinates settle: the last time at which some coordinate is further
+/// than `tolerance` from its last value (only finite values count); the first time if none
+/// ever is. `series` holds each coordinate's values at the times `t`. `None` when there is
+/// no finite value.
+pub fn settle_time(t: &[f64], series: &[Vec<f64>], tolerance: f64) -> Option<f64> {
+    let finite = |k: usize, y: &[f64]| {
+        t.get(k).is_some_and(|x| x.is_finite()) && y.get(k).is_some_and(|v| v.is_finite())
     };
-    let mut scale = 0.0_f64;
-    let mut finals = Vec::with_capacity(series.len());
+    let mut settled: Option<f64> = None;
     for y in series {
-        let mut range = Range::EMPTY;
-        range.cover((0..y.len()).filter(|k| finite(k, y)).map(|k| y[k]));
-        if range.low <= range.high {
-            scale = scale.max(range.high - range.low);
-        }
-        finals.push((0..y.len()).rev().find(|k| finite(k, y)).map(|k| y[k]));
-    }
-    let first = (0..t.len()).find(|&k| t[k].is_finite()).map(|k| t[k])?;
-    let tolerance = fraction * scale;
-    let mut settled = None;
-    for (y, last) in series.iter().zip(finals) {
-        let Some(last) = last else { continue };
+        let Some(end) = (0..y.len()).rev().find(|&k| finite(k, y)) else {
+            continue;
+        };
+        let first = (0..y.len()).find(|&k| finite(k, y)).unwrap_or(end);
         let out = (0..y.len())
             .rev()
-            .find(|k| finite(k, y) && (y[*k] - last).abs() > tolerance);
-        let time = out.map_or(first, |k| t[k]);
-        settled = Some(settled.map_or(time, |s: f64| s.max(time)));
+            .find(|&k| finite(k, y) && (y[k] - y[end]).abs() > tolerance);
+        let time = t[out.unwrap_or(first)];
+        settled = Some(settled.map_or(time, |s| s.max(time)));
     }
     settled
+}
+
+/// The largest excursion `max − min` of the finite values of any of `series` (0 if none).
+pub fn excursion(series: &[Vec<f64>]) -> f64 {
+    series
+        .iter()
+        .map(|y| {
+            let mut range = Range::EMPTY;
+            range.cover(y.iter().copied());
+            if range.low <= range.high {
+                range.high - range.low
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The smallest of `1, 1.5, 2, 2.5, 3, 4, 5, 6, 8` times a power of ten that is at least
