@@ -17,6 +17,7 @@
 //! | [`sim`] | the closed-loop simulator: ticks on the sampled state, the plant in between |
 //! | [`record`] | a run's trajectory, one row per tick (CSV in and out) |
 //! | [`plot`] | figures of a run like the paper's Fig. 4 (PNG, SVG) |
+//! | [`replot`] | `softcbf plot`: the figures redrawn from trajectory CSVs and hardware logs |
 //! | [`output`] | what `softcbf simulate` writes and shows: CSVs, summary, figures, progress |
 //! | [`inspect`] | `softcbf model`: every generated and dynamic quantity at one state, as JSON |
 //! | [`protocol`] | Dynamixel Protocol 2.0 codec and bus client |
@@ -62,6 +63,7 @@ pub mod protocol;
 pub mod qp;
 pub mod record;
 pub mod reference;
+pub mod replot;
 pub mod scenario;
 pub mod settings;
 pub mod sim;

@@ -109,6 +109,8 @@ enum Command {
     Emulate(softcbf::hardware::cli::EmulateArgs),
     /// Run the safe controller on the robot's servos (or on `softcbf emulate`).
     Run(softcbf::hardware::cli::RunArgs),
+    /// Redraw the figures from trajectory CSVs or hardware logs (several: side by side).
+    Plot(softcbf::replot::PlotArgs),
 }
 
 fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
@@ -143,6 +145,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         }
         Command::Emulate(args) => softcbf::hardware::cli::emulate(args, console),
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
+        Command::Plot(args) => softcbf::replot::plot(args, console),
         Command::Simulate(args) => run_simulation(args, console),
     }
 }

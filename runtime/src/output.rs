@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::json;
 
-use crate::plot::draw_figures;
+use crate::plot::{FigureOptions, write_figures};
 use crate::sim::{Run, RunSummary};
 
 /// Why outputs could not be written.
@@ -67,20 +67,20 @@ pub fn write_outputs(
     std::fs::write(&summary_path, text).map_err(io_error(&summary_path))?;
     written.push(summary_path);
 
-    let title = |summary: &RunSummary| match summary.controller {
-        "filter" => "safety filter (HOCBF-QP)",
-        _ => "PD+ only",
-    };
+    let title = |summary: &RunSummary| crate::plot::controller_title(summary.controller);
     let mut panels = vec![(title(&main.summary), &main.record)];
     if let Some(pd) = comparison {
         panels.push((title(&pd.summary), &pd.record));
     }
-    written.extend(draw_figures(
+    let options = FigureOptions {
+        barriers_per_module,
+        ..FigureOptions::default()
+    };
+    written.extend(write_figures(
         out_dir,
-        "figure",
         &panels,
         &main.summary.set_point,
-        barriers_per_module,
+        &options,
     )?);
     Ok(written)
 }

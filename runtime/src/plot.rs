@@ -1,5 +1,11 @@
-//! Figures of a run like the paper's Fig. 4 (coordinates, applied τ, barriers), as PNG and
-//! SVG, from one record or side by side from several (e.g. safety filter and plain PD+).
+//! Figures of a run like the paper's Fig. 4 (coordinates, applied τ, the filter's action
+//! `τ − τ_nom`, barriers), as PNG and SVG, from one record or side by side from several.
+//!
+//! [`write_figures`] is the one entry point of `softcbf simulate`, `softcbf run` and
+//! `softcbf plot`. The time axis is split where the motion settles ([`Split`]): the
+//! transient gets most of the width, the rest of the run the remainder, on one shared
+//! value axis. Barriers that reach zero are labelled (from the record's barrier labels)
+//! in a column below the lowest of them, so the labels collide with nothing.
 //!
 //! Text is drawn with DejaVu Sans compiled into the binary (registered once with plotters'
 //! `ab_glyph` backend), so a figure comes out byte-identical on any machine: no system
@@ -9,11 +15,12 @@
 //!
 //! ```no_run
 //! # use softcbf::record::Record;
+//! # use softcbf::plot::{FigureOptions, write_figures};
 //! # fn demo(filtered: &Record, plain: &Record) -> Result<(), softcbf::plot::PlotError> {
 //! let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
 //! let panels = [("safety filter (HOCBF-QP)", filtered), ("PD+ only", plain)];
-//! let files = softcbf::plot::draw_figures("out".as_ref(), "trajectory", &panels, &set_point, &[6, 6])?;
-//! assert_eq!(files.len(), 2); // out/trajectory.png, out/trajectory.svg
+//! let files = write_figures("out".as_ref(), &panels, &set_point, &FigureOptions::default())?;
+//! assert_eq!(files.len(), 2); // out/figure.png, out/figure.svg
 //! # Ok(()) }
 //! ```
 
@@ -23,13 +30,18 @@ use std::sync::OnceLock;
 mod draw;
 pub mod robot_view;
 mod series;
+mod style;
 
-use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, SVGBackend};
+use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, IntoFont, SVGBackend};
 use plotters::style::register_font;
 
 use crate::record::Record;
 use series::Range;
-pub use series::{coordinate_labels, envelope};
+pub use series::{display_name, envelope, excursion, nice_ceil, settle_time, window};
+pub use style::{
+    DISTINCT_COORDINATES, LineStyle, PALETTE, SET_POINT_DASH, barrier_style, coordinate_style,
+    module_dash,
+};
 
 /// Why figures could not be drawn.
 #[derive(Debug, thiserror::Error)]
@@ -58,6 +70,9 @@ pub enum PlotError {
     /// The embedded font could not be registered.
     #[error("the embedded DejaVu font could not be registered with plotters")]
     Font,
+    /// A time window or split that cannot be drawn.
+    #[error("{0}")]
+    Time(String),
     /// Creating the output directory failed.
     #[error("{}: {source}", dir.display())]
     Io {
@@ -79,13 +94,65 @@ pub enum PlotError {
 /// Font family name the figures use (registered with the embedded DejaVu Sans).
 const FONT: &str = "sans-serif";
 /// Width of one column of panels \[px\].
-pub const COLUMN_WIDTH: u32 = 620;
+pub const COLUMN_WIDTH: u32 = 660;
 /// Width of the legend strip at the right \[px\].
-pub const LEGEND_WIDTH: u32 = 160;
+pub const LEGEND_WIDTH: u32 = 170;
 /// Height of a figure \[px\].
-pub const FIGURE_HEIGHT: u32 = 1000;
+pub const FIGURE_HEIGHT: u32 = 1240;
 /// Height of the column-title band \[px\].
 const TITLE_HEIGHT: u32 = 44;
+/// Rows of panels: q, τ, τ − τ_nom, b.
+const ROWS: usize = 4;
+/// Height of a panel's caption \[px\].
+const CAPTION_HEIGHT: u32 = 26;
+/// Height of the time-axis labels under a panel \[px\].
+const X_LABEL_HEIGHT: u32 = 40;
+/// Margin above and below a panel's plot \[px\].
+const PLOT_MARGIN: u32 = 4;
+/// Line height of the labels of the barriers that reach zero \[px\].
+const LABEL_LINE: u32 = 17;
+
+/// Fraction of the largest excursion of a coordinate over the run within which the motion
+/// counts as settled, for [`Split::Auto`].
+pub const SETTLE_FRACTION: f64 = 0.05;
+/// [`Split::Auto`] splits only if the transient takes at most this fraction of the window.
+pub const SPLIT_AT_MOST: f64 = 0.45;
+/// [`Split::Auto`] puts at least this many rows of every record before the split, so that a
+/// slow log (a hardware run at 33 Hz) still shows its transient as a curve.
+pub const SPLIT_MIN_ROWS: usize = 30;
+/// Share of a panel's plot width given to the part before the split.
+pub const SPLIT_SHARE: f64 = 0.64;
+/// A barrier whose lowest value is at most this \[m\] (or 0.2 % of the barrier axis, if
+/// larger) counts as reaching zero and gets a label.
+pub const ACTIVE_TOLERANCE: f64 = 1e-4;
+
+/// Where the time axis of every panel is split into the transient and the rest.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Split {
+    /// Where the coordinates of every panel have settled to within [`SETTLE_FRACTION`] of
+    /// their excursion (but after [`SPLIT_MIN_ROWS`] rows), rounded up to 1, 1.5, 2, 2.5,
+    /// 3, 4, 5, 6 or 8 × 10ᵏ s from the window's start; no split if that is more than
+    /// [`SPLIT_AT_MOST`] of the window.
+    #[default]
+    Auto,
+    /// One time axis over the whole window.
+    Off,
+    /// At this time \[s\] (inside the window).
+    At(f64),
+}
+
+/// How the figures are drawn, beyond the records and the set point.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FigureOptions<'a> {
+    /// Time window `(start, end)` \[s\] (default: the records' whole time span).
+    pub time_range: Option<(f64, f64)>,
+    /// Where the time axis is split.
+    pub split: Split,
+    /// How many barriers each module owns, in order (e.g. `sim::barriers_per_module` of
+    /// the model's table). Empty: from the barrier labels (`module K …`), else evenly over
+    /// the `n/3` modules, else one module.
+    pub barriers_per_module: &'a [usize],
+}
 
 /// Registers the embedded fonts with plotters, once per process.
 fn register_fonts() -> Result<(), PlotError> {
@@ -98,26 +165,180 @@ fn register_fonts() -> Result<(), PlotError> {
     if ok { Ok(()) } else { Err(PlotError::Font) }
 }
 
-/// What one figure shows: validated input and shared axis ranges.
+/// A barrier that reaches zero in one panel: its index, its lowest and its last value in
+/// the window.
+#[derive(Clone, Copy, Debug)]
+struct Active {
+    barrier: usize,
+    low: f64,
+    last: f64,
+}
+
+/// Width of the value labels left of a panel \[px\].
+const Y_LABEL_WIDTH: u32 = 70;
+/// Margins left and right of a panel's plot \[px\].
+const MARGIN_LEFT: u32 = 6;
+const MARGIN_RIGHT: u32 = 14;
+/// Width of the line sample before a barrier's label, with its spacing \[px\].
+const LABEL_SAMPLE: u32 = 34;
+/// Font size of the barriers' labels \[px\].
+const LABEL_FONT: u32 = 14;
+/// Width allowed per character of a barrier's label if the font cannot measure it \[px\].
+const LABEL_CHAR: u32 = 9;
+
+/// How the labels of the barriers that reach zero are laid out in every panel: a block of
+/// `columns` cells of `cell` pixels, filled row by row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LabelGrid {
+    columns: usize,
+    cell: u32,
+}
+
+impl LabelGrid {
+    /// A grid wide enough for the widest of `labels` (measured in the embedded font), as
+    /// many cells as fit in a panel.
+    fn new(labels: &[String]) -> LabelGrid {
+        let font = (FONT, LABEL_FONT).into_font();
+        let widest = labels
+            .iter()
+            .map(|label| {
+                font.box_size(label)
+                    .map_or(LABEL_CHAR * label.chars().count() as u32, |(w, _)| w)
+            })
+            .max()
+            .unwrap_or(0);
+        let cell = LABEL_SAMPLE + widest + 14;
+        let usable = COLUMN_WIDTH - Y_LABEL_WIDTH - MARGIN_LEFT - MARGIN_RIGHT;
+        LabelGrid {
+            columns: (usable / cell.max(1)).max(1) as usize,
+            cell,
+        }
+    }
+
+    /// Rows of a block of `count` labels.
+    fn rows(&self, count: usize) -> usize {
+        count.div_ceil(self.columns)
+    }
+}
+
+/// What one figure shows: validated input, shared axis ranges, the time split and the
+/// barriers to label.
 struct Figure<'a> {
     panels: &'a [(&'a str, &'a Record)],
     set_point: &'a [f64],
-    /// Module of each barrier.
+    /// Module of each barrier, and its index within the module.
     barrier_module: Vec<usize>,
+    barrier_index: Vec<usize>,
     modules: usize,
-    time: std::ops::Range<f64>,
-    /// Value ranges of the rows (q, τ, b), shared by all columns.
-    rows: [std::ops::Range<f64>; 3],
+    /// Name of each barrier colour (the label without its `module K` prefix).
+    key_names: Vec<String>,
+    /// Time window and split point.
+    window: (f64, f64),
+    split: Option<f64>,
+    /// Value ranges of the rows (q, τ, τ − τ_nom, b), shared by all columns.
+    rows: [std::ops::Range<f64>; ROWS],
+    /// Names of the coordinates as shown (`Δx₁`).
     labels: Vec<String>,
+    /// Per panel, the barriers that reach zero, highest last value first.
+    active: Vec<Vec<Active>>,
+    /// Layout of their labels.
+    grid: LabelGrid,
+}
+
+/// The values of one series of `record` within the window.
+fn windowed(times: &[f64], values: impl Iterator<Item = f64>, window: (f64, f64)) -> Vec<f64> {
+    let values: Vec<f64> = values.collect();
+    series::window(times, &values, window.0, window.1).1
+}
+
+/// The time axis of a figure: its window \[s\] and where it splits, if it does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeAxis {
+    /// `(start, end)` \[s\].
+    pub window: (f64, f64),
+    /// The time \[s\] where the axis splits into the transient and the rest.
+    pub split: Option<f64>,
+}
+
+/// The time axis the figures of `panels` get with `options`: the window given, else the
+/// records' whole time span; the split per [`FigureOptions::split`]. Refuses a window that
+/// is empty, not finite or holds no row of some record, and a split outside the window.
+pub fn time_axis(
+    panels: &[(&str, &Record)],
+    options: &FigureOptions,
+) -> Result<TimeAxis, PlotError> {
+    let mut span = Range::EMPTY;
+    for (_, record) in panels {
+        span.cover(record.times());
+    }
+    let window = match options.time_range {
+        Some((start, end)) => {
+            if !(start.is_finite() && end.is_finite() && start < end) {
+                return Err(PlotError::Time(format!(
+                    "time range {start}..{end} s: the start must be below the end, both finite"
+                )));
+            }
+            (start, end)
+        }
+        None => {
+            let range = span.exact_or_padded();
+            (range.start, range.end)
+        }
+    };
+    let mut settled: Option<f64> = None;
+    // The time of the `SPLIT_MIN_ROWS`-th row in the window, over all records.
+    let mut enough_rows = window.0;
+    for (title, record) in panels {
+        let times: Vec<f64> = record.times().collect();
+        let clipped_times = series::window(&times, &times, window.0, window.1).0;
+        if clipped_times.is_empty() {
+            return Err(PlotError::Time(format!(
+                "record `{title}` has no rows in the time range {}..{} s",
+                window.0, window.1
+            )));
+        }
+        let n = record.columns().n();
+        // The tolerance is a fraction of the whole run's motion, so that a window after
+        // the motion has settled shows no transient.
+        let whole: Vec<Vec<f64>> = (0..n).map(|i| record.q(i).collect()).collect();
+        let tolerance = SETTLE_FRACTION * series::excursion(&whole);
+        let coordinates: Vec<Vec<f64>> = (0..n)
+            .map(|i| windowed(&times, record.q(i), window))
+            .collect();
+        let row = SPLIT_MIN_ROWS.min(clipped_times.len() - 1);
+        enough_rows = enough_rows.max(clipped_times[row]);
+        if let Some(time) = series::settle_time(&clipped_times, &coordinates, tolerance) {
+            settled = Some(settled.map_or(time, |s| s.max(time)));
+        }
+    }
+    let split = match options.split {
+        Split::Off => None,
+        Split::At(at) => {
+            if !(at.is_finite() && window.0 < at && at < window.1) {
+                return Err(PlotError::Time(format!(
+                    "split at {at} s: it must lie inside the time range {}..{} s",
+                    window.0, window.1
+                )));
+            }
+            Some(at)
+        }
+        Split::Auto => settled.and_then(|time| {
+            let at = window.0 + nice_ceil(time.max(enough_rows) - window.0);
+            let length = window.1 - window.0;
+            (time > window.0 && at - window.0 <= SPLIT_AT_MOST * length).then_some(at)
+        }),
+    };
+
+    Ok(TimeAxis { window, split })
 }
 
 impl<'a> Figure<'a> {
     fn new(
         panels: &'a [(&'a str, &'a Record)],
         set_point: &'a [f64],
-        barriers_per_module: &[usize],
+        options: &FigureOptions,
     ) -> Result<Figure<'a>, PlotError> {
-        let (_, first) = panels.first().ok_or(PlotError::NoPanels)?;
+        let (first_title, first) = panels.first().ok_or(PlotError::NoPanels)?;
         let (n, m) = (first.columns().n(), first.columns().m());
         let mismatch = |title: &str, what, expected, found| PlotError::Mismatch {
             title: title.to_string(),
@@ -125,86 +346,126 @@ impl<'a> Figure<'a> {
             expected,
             found,
         };
-        let (mut time, mut q, mut tau, mut b) =
-            (Range::EMPTY, Range::EMPTY, Range::EMPTY, Range::EMPTY);
-        b.cover([0.0]);
-        q.cover(set_point.iter().copied());
         for (title, record) in panels {
             if record.is_empty() {
                 return Err(PlotError::EmptyRecord {
                     title: title.to_string(),
                 });
             }
-            if record.columns().n() != n {
-                return Err(mismatch(
-                    title,
-                    "the number of coordinates",
-                    n,
-                    record.columns().n(),
-                ));
+            let columns = record.columns();
+            if columns.n() != n {
+                return Err(mismatch(title, "the number of coordinates", n, columns.n()));
             }
-            if record.columns().m() != m {
-                return Err(mismatch(
-                    title,
-                    "the number of barriers",
-                    m,
-                    record.columns().m(),
-                ));
-            }
-            time.cover(record.times());
-            for i in 0..n {
-                q.cover(record.q(i));
-                tau.cover(record.tau(i));
-            }
-            for j in 0..m {
-                b.cover(record.b(j));
+            if columns.m() != m {
+                return Err(mismatch(title, "the number of barriers", m, columns.m()));
             }
         }
         if !set_point.is_empty() && set_point.len() != n {
             return Err(mismatch(
-                panels[0].0,
+                first_title,
                 "the set point's length",
                 n,
                 set_point.len(),
             ));
         }
-        let per_module: Vec<usize> = if barriers_per_module.is_empty() {
-            default_modules(n, m)
+        let TimeAxis { window, split } = time_axis(panels, options)?;
+        let per_module = if !options.barriers_per_module.is_empty() {
+            options.barriers_per_module.to_vec()
         } else {
-            barriers_per_module.to_vec()
+            modules_from_labels(first.columns().barrier_labels())
+                .unwrap_or_else(|| default_modules(n, m))
         };
         let total: usize = per_module.iter().sum();
         if total != m {
             return Err(mismatch(
-                panels[0].0,
+                first_title,
                 "the barriers summed over modules",
                 m,
                 total,
             ));
         }
-        let barrier_module = per_module
+        let barrier_module: Vec<usize> = per_module
             .iter()
             .enumerate()
             .flat_map(|(module, &count)| std::iter::repeat_n(module, count))
             .collect();
-        let time = time.exact_or_padded();
+        let barrier_index: Vec<usize> = per_module.iter().flat_map(|&count| 0..count).collect();
+        let most = per_module.iter().copied().max().unwrap_or(0);
+        let labels = first.columns().barrier_labels();
+        let key_names = (0..most)
+            .map(|k| {
+                let j = barrier_index.iter().position(|&index| index == k);
+                j.and_then(|j| strip_module(&labels[j]))
+                    .map_or_else(|| format!("#{}", k + 1), str::to_string)
+            })
+            .collect();
+
+        let mut rows = [Range::EMPTY; ROWS];
+        rows[0].cover(set_point.iter().copied());
+        rows[2].cover([0.0]);
+        rows[3].cover([0.0]);
+        let mut lowest = Vec::with_capacity(panels.len());
+        for (_, record) in panels {
+            let times: Vec<f64> = record.times().collect();
+            for i in 0..n {
+                rows[0].cover(windowed(&times, record.q(i), window));
+                rows[1].cover(windowed(&times, record.tau(i), window));
+                let action = record.tau(i).zip(record.tau_nom(i)).map(|(a, b)| a - b);
+                rows[2].cover(windowed(&times, action, window));
+            }
+            let mut minima = Vec::with_capacity(m);
+            for j in 0..m {
+                let b = windowed(&times, record.b(j), window);
+                rows[3].cover(b.iter().copied());
+                let mut range = Range::EMPTY;
+                range.cover(b.iter().copied());
+                let last = b.iter().rev().copied().find(|v| v.is_finite());
+                minima.push((range.low, last));
+            }
+            lowest.push(minima);
+        }
+        let b_range = rows[3].padded();
+        let tolerance = ACTIVE_TOLERANCE.max(0.002 * (b_range.end - b_range.start));
+        let active: Vec<Vec<Active>> = lowest
+            .iter()
+            .map(|minima| {
+                let mut active: Vec<Active> = minima
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(barrier, &(low, last))| {
+                        (low <= tolerance).then_some(Active {
+                            barrier,
+                            low,
+                            last: last.unwrap_or(low),
+                        })
+                    })
+                    .collect();
+                active.sort_by(|a, b| b.last.total_cmp(&a.last).then(a.barrier.cmp(&b.barrier)));
+                active
+            })
+            .collect();
+        let grid = LabelGrid::new(first.columns().barrier_labels());
+        let mut rows = rows.map(Range::padded);
+        rows[3] = room_for_labels(rows[3].clone(), &active, grid);
         Ok(Figure {
             panels,
             set_point,
             barrier_module,
+            barrier_index,
             modules: per_module.len(),
-            time,
-            rows: [q.padded(), tau.padded(), b.padded()],
-            labels: coordinate_labels(n),
+            key_names,
+            window,
+            split,
+            rows,
+            labels: first
+                .columns()
+                .coordinate_names()
+                .iter()
+                .map(|name| display_name(name))
+                .collect(),
+            active,
+            grid,
         })
-    }
-
-    /// Index of barrier `j` within its module.
-    fn barrier_index(&self, j: usize) -> usize {
-        self.barrier_module[..j]
-            .iter()
-            .filter(|&&module| module == self.barrier_module[j])
-            .count()
     }
 
     fn size(&self) -> (u32, u32) {
@@ -214,6 +475,70 @@ impl<'a> Figure<'a> {
         )
     }
 }
+
+/// Height of the plot of one panel \[px\] (the row less its caption, time labels, margins).
+fn plot_height() -> u32 {
+    (FIGURE_HEIGHT - TITLE_HEIGHT) / ROWS as u32 - CAPTION_HEIGHT - X_LABEL_HEIGHT - 2 * PLOT_MARGIN
+}
+
+/// The barrier axis `range` lowered so that, in every panel, the labels of the barriers that
+/// reach zero fit in a block (`grid`) below the lowest value of them: below every line.
+fn room_for_labels(
+    range: std::ops::Range<f64>,
+    active: &[Vec<Active>],
+    grid: LabelGrid,
+) -> std::ops::Range<f64> {
+    let mut low = range.start;
+    let high = range.end;
+    for panel in active {
+        let Some(lowest) = panel.iter().map(|a| a.low).reduce(f64::min) else {
+            continue;
+        };
+        // Fraction of the plot height the labels need below `lowest`.
+        let block = LABEL_LINE * grid.rows(panel.len()) as u32 + LABEL_LINE / 2;
+        let need = block as f64 / plot_height() as f64;
+        if need < 0.8 && lowest.is_finite() {
+            // (lowest − low') / (high − low') = need.
+            low = low.min((lowest - need * high) / (1.0 - need));
+        }
+    }
+    low..high
+}
+
+/// The label without its `module K ` prefix (`module 2 corner 6` → `corner 6`), if it has one.
+fn strip_module(label: &str) -> Option<&str> {
+    let (module, rest) = split_module(label)?;
+    (module > 0).then_some(rest)
+}
+
+/// `(K, rest)` of a label `module K rest` (`K` ≥ 1; `rest` may be empty).
+fn split_module(label: &str) -> Option<(usize, &str)> {
+    let after = label.strip_prefix("module ")?;
+    let digits = after.bytes().take_while(u8::is_ascii_digit).count();
+    let module: usize = after[..digits].parse().ok()?;
+    let rest = &after[digits..];
+    if !(rest.is_empty() || rest.starts_with(' ')) || module == 0 {
+        return None;
+    }
+    Some((module, rest.trim_start()))
+}
+
+/// How many barriers each module owns, from labels that begin with `module K` (1-based, in
+/// non-decreasing order, as the model's barrier table writes them): counts for modules
+/// `1..=K_max`. `None` if a label does not begin so, or the modules are out of order.
+pub fn modules_from_labels(labels: &[String]) -> Option<Vec<usize>> {
+    let mut counts: Vec<usize> = Vec::new();
+    for label in labels {
+        let (module, _) = split_module(label)?;
+        if module < counts.len() {
+            return None;
+        }
+        counts.resize(module, 0);
+        counts[module - 1] += 1;
+    }
+    (!counts.is_empty()).then_some(counts)
+}
+
 /// Writes 8-bit RGB `pixels` (row-major, `size` = width × height) as a PNG file.
 fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String> {
     let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
@@ -225,8 +550,8 @@ fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String>
     writer.finish().map_err(|e| e.to_string())
 }
 
-/// How `m` barriers split into modules when the caller does not say: evenly over the
-/// `n / 3` modules if they divide, else all in one.
+/// How `m` barriers split into modules when nothing says: evenly over the `n / 3` modules
+/// if they divide, else all in one.
 fn default_modules(n: usize, m: usize) -> Vec<usize> {
     let modules = n / 3;
     if n.is_multiple_of(3) && modules > 0 && m.is_multiple_of(modules) {
@@ -236,23 +561,36 @@ fn default_modules(n: usize, m: usize) -> Vec<usize> {
     }
 }
 
+/// Writes every figure of a run into `out_dir` (created if missing) and returns the files:
+/// today `figure.png` and `figure.svg` ([`draw_figures`] with the stem `figure`). `panels`
+/// are the columns, left to right (a title and a record each, all with the same `n` and
+/// `m`); `set_point` has `n` values or none. This is the one function `softcbf simulate`,
+/// `softcbf run` and `softcbf plot` call, so that a new figure appears in all three.
+pub fn write_figures(
+    out_dir: &Path,
+    panels: &[(&str, &Record)],
+    set_point: &[f64],
+    options: &FigureOptions,
+) -> Result<Vec<PathBuf>, PlotError> {
+    draw_figures(out_dir, "figure", panels, set_point, options)
+}
+
 /// Draws `<stem>.png` and `<stem>.svg` in `out_dir` (created if missing) and returns their
-/// paths. `panels` are the columns, left to right, each a title and its record (all with
-/// the same `n` and `m`); `set_point` (n values, or empty for none) is drawn dashed in the
-/// colour of its coordinate; `barriers_per_module` gives how the `m` barriers split into
-/// modules, in order (empty: evenly over the `n/3` modules if that divides `m`, else
-/// one module); module 1 is drawn solid, module 2 dashed, further modules in other dashes.
-/// The figure is `620·columns + 160` × 1000 pixels; the y range of each row of panels is
-/// shared by the columns so they compare at a glance.
+/// paths. Four rows of panels per column: (a) the coordinates with their set points
+/// dotted, (b) the applied `τ`, (c) the filter's action `τ − τ_nom`, (d) the barriers, the
+/// ones that reach zero labelled. Coordinates are told apart by [`coordinate_style`];
+/// barriers by colour within a module and dash per module ([`barrier_style`]). The figure
+/// is `660·columns + 170` × 1240 pixels; the value range of each row is shared by the
+/// columns so they compare at a glance, and so is the time axis, split per `options`.
 pub fn draw_figures(
     out_dir: &Path,
     stem: &str,
     panels: &[(&str, &Record)],
     set_point: &[f64],
-    barriers_per_module: &[usize],
+    options: &FigureOptions,
 ) -> Result<Vec<PathBuf>, PlotError> {
     register_fonts()?;
-    let figure = Figure::new(panels, set_point, barriers_per_module)?;
+    let figure = Figure::new(panels, set_point, options)?;
     std::fs::create_dir_all(out_dir).map_err(|source| PlotError::Io {
         dir: out_dir.to_path_buf(),
         source,
@@ -281,4 +619,14 @@ pub fn draw_figures(
             .map_err(failed(&svg))?;
     }
     Ok(vec![png, svg])
+}
+
+/// The column title of a run by its controller as `summary.json` names it (`filter`,
+/// `pd`); any other name is shown as it is.
+pub fn controller_title(controller: &str) -> &str {
+    match controller {
+        "filter" => "safety filter (HOCBF-QP)",
+        "pd" => "PD+ only",
+        other => other,
+    }
 }

@@ -1,20 +1,49 @@
 //! Trajectory record of a run: one row per control tick (`t`, `q`, `q̇`, `τ`, `τ_nom`, `b`
 //! and named extra columns), preallocated so that recording allocates nothing per tick.
 //!
-//! The column layout ([`Columns`]) is fixed at construction. Rows are stored row-major in
-//! one buffer; [`Record::push_row`] copies a [`Row`] into it. The CSV form (header
-//! `t,q0,…,qd0,…,tau0,…,taunom0,…,b0,…` then the extra names) is written by
-//! [`Record::write_csv`], streamed during a run by [`CsvWriter`] and read back by
-//! [`Record::read_csv`]; the three share one formatting and parsing code path (in `record/csv.rs`).
+//! The column layout ([`Columns`]) is fixed at construction: the coordinates' names, the
+//! barriers' labels (from the model's barrier table) and the extra columns. Rows are stored
+//! row-major in one buffer; [`Record::push_row`] copies a [`Row`] into it. The CSV form is
+//! written by [`Record::write_csv`], streamed during a run by [`CsvWriter`] and read back by
+//! [`Record::read_csv`]; the three share one formatting and parsing code path (in
+//! `record/csv.rs`).
+//!
+//! # Column names
+//!
+//! One header line, then one line per tick; every name is unique, ASCII for the standard
+//! columns, without commas, quotes or line breaks, so a spreadsheet or
+//! `pandas.read_csv("trajectory.csv")` reads the file as it is and `df["dx1 [m]"]` can be
+//! typed. Each name carries its unit in brackets:
+//!
+//! | columns | name | example |
+//! |---|---|---|
+//! | time | `t [s]` | `t [s]` |
+//! | coordinates `q` | `<c> [m]` | `dx1 [m]`, `dy1 [m]`, `dL1 [m]` (`Δx₁`, `Δy₁`, `δL₁`) |
+//! | velocities `q̇` | `<c>/dt [m/s]` | `dx1/dt [m/s]` |
+//! | applied command `τ` | `tau <c> [N]` | `tau dL2 [N]` |
+//! | nominal command `τ_nom` | `tau_nom <c> [N]` | `tau_nom dL2 [N]` |
+//! | barriers `b` | `b <label> [m]` | `b module 1 corner 3 [m]` |
+//! | extras | as given, unit in brackets | `read [us]`, `f module 1 tendon 2 [N]` |
+//!
+//! Coordinates are named by [`coordinate_names`] (module numbers from 1, as in the paper's
+//! `Δx₁`); barrier labels are taken as the model's barrier table gives them
+//! (`softcbf_generated::BarrierInfo::label`). [`Record::read_csv`] also reads the older
+//! header `t,q0,…,qd0,…,tau0,…,taunom0,…,b0,…` (then the coordinates get the standard
+//! names and the barriers the labels `barrier 1`, `barrier 2`, …).
 //!
 //! ```
-//! use softcbf::record::{Record, Row};
-//! let mut record = Record::with_capacity(1, 1, &["loop_us"], 10_001)?;
+//! use softcbf::record::{Columns, Record, Row};
+//! let columns = Columns::named(&["dx1"], &["module 1 corner 1"], &["loop [us]"])?;
+//! let mut record = Record::for_columns(columns, 10_001);
 //! let row = Row { t: 0.0, q: &[0.01], qd: &[0.0], tau: &[0.5], tau_nom: &[0.7], b: &[0.02], extra: &[12.0] };
 //! record.push_row(&row)?; // no allocation: 10 001 rows were reserved
 //! let mut csv = Vec::new();
 //! record.write_csv_to(&mut csv)?;
-//! assert_eq!(String::from_utf8(csv)?, "t,q0,qd0,tau0,taunom0,b0,loop_us\n0,0.01,0,0.5,0.7,0.02,12\n");
+//! assert_eq!(
+//!     String::from_utf8(csv)?,
+//!     "t [s],dx1 [m],dx1/dt [m/s],tau dx1 [N],tau_nom dx1 [N],b module 1 corner 1 [m],loop [us]\n\
+//!      0,0.01,0,0.5,0.7,0.02,12\n"
+//! );
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
@@ -23,6 +52,8 @@ mod csv;
 use std::path::PathBuf;
 
 pub use csv::CsvWriter;
+
+use crate::model::Model;
 
 /// Why a record cannot be built, written or read. File errors name the file, line and
 /// column.
@@ -37,7 +68,7 @@ pub enum RecordError {
         source: std::io::Error,
     },
     /// The file has no header line.
-    #[error("{}:1: empty file, expected the header `t,q0,…`", file.display())]
+    #[error("{}:1: empty file, expected the header `t [s],…`", file.display())]
     MissingHeader {
         /// The file.
         file: PathBuf,
@@ -88,67 +119,244 @@ pub enum RecordError {
         /// Size given.
         found: usize,
     },
-    /// An extra column name cannot be used.
-    #[error("extra column name `{name}`: {reason}")]
-    ExtraName {
+    /// A coordinate name, barrier label or extra column name cannot be used.
+    #[error("{what} `{name}`: {reason}")]
+    ColumnName {
+        /// What kind of name: `coordinate name`, `barrier label` or `extra column name`.
+        what: &'static str,
         /// The name.
         name: String,
         /// Why it is refused.
         reason: &'static str,
     },
+    /// A new layout for a record does not have the record's sizes.
+    #[error("the new columns have {found} {what}, the record has {expected}")]
+    Relabel {
+        /// `coordinates`, `barriers` or `extra columns`.
+        what: &'static str,
+        /// The record's count.
+        expected: usize,
+        /// The new layout's count.
+        found: usize,
+    },
 }
 
-/// The column layout: `n` coordinates, `m` barriers and named extra scalar columns.
+/// Name of the time column.
+pub const TIME: &str = "t [s]";
+
+/// The groups of per-coordinate and per-barrier columns, in column order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Group {
+    Q,
+    Qd,
+    Tau,
+    TauNom,
+    B,
+}
+
+impl Group {
+    const ALL: [Group; 5] = [Group::Q, Group::Qd, Group::Tau, Group::TauNom, Group::B];
+
+    /// `(prefix, suffix)` around a coordinate name or barrier label.
+    fn affixes(self) -> (&'static str, &'static str) {
+        match self {
+            Group::Q => ("", " [m]"),
+            Group::Qd => ("", "/dt [m/s]"),
+            Group::Tau => ("tau ", " [N]"),
+            Group::TauNom => ("tau_nom ", " [N]"),
+            Group::B => ("b ", " [m]"),
+        }
+    }
+
+    /// The column name of `name` in this group.
+    fn column(self, name: &str) -> String {
+        let (prefix, suffix) = self.affixes();
+        format!("{prefix}{name}{suffix}")
+    }
+
+    /// The coordinate name or barrier label inside `column`, if it has this group's form.
+    fn strip(self, column: &str) -> Option<&str> {
+        let (prefix, suffix) = self.affixes();
+        column
+            .strip_prefix(prefix)?
+            .strip_suffix(suffix)
+            .filter(|inner| !inner.is_empty())
+    }
+}
+
+/// Names of `n` generalized coordinates in CSV columns: `dx1, dy1, dL1, dx2, …` for the
+/// paper's `Δx₁, Δy₁, δL₁, Δx₂, …` (docs/model.md §1) when `n` is a multiple of 3, else
+/// `q1, q2, …`. Modules are numbered from 1.
+pub fn coordinate_names(n: usize) -> Vec<String> {
+    if !n.is_multiple_of(3) {
+        return (1..=n).map(|k| format!("q{k}")).collect();
+    }
+    (0..n)
+        .map(|k| format!("{}{}", ["dx", "dy", "dL"][k % 3], k / 3 + 1))
+        .collect()
+}
+
+/// Labels of `m` barriers when nothing better is known (an old log): `barrier 1, …`.
+pub fn default_barrier_labels(m: usize) -> Vec<String> {
+    (1..=m).map(|j| format!("barrier {j}")).collect()
+}
+
+/// The names as string slices, for [`Columns::named`].
+pub fn as_strs(names: &[String]) -> Vec<&str> {
+    names.iter().map(String::as_str).collect()
+}
+
+/// Why `name` cannot be used in a header, if it cannot: empty, blank at either end, or
+/// holding a comma, a quote or a control character (a line break, a tab).
+fn csv_name_problem(name: &str) -> Option<&'static str> {
+    if name.is_empty() {
+        Some("it is empty")
+    } else if name.trim() != name {
+        Some("it starts or ends with a blank")
+    } else if name.chars().any(|c| c == ',' || c == '"' || c.is_control()) {
+        Some("commas, quotes and control characters are not allowed")
+    } else {
+        None
+    }
+}
+
+/// The column layout: named coordinates, labelled barriers and named extra scalar columns.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Columns {
-    n: usize,
-    m: usize,
+    coordinates: Vec<String>,
+    barriers: Vec<String>,
     extra: Vec<String>,
 }
 
-/// Base names of the per-coordinate and per-barrier groups, in column order.
-const GROUPS: [&str; 5] = ["q", "qd", "tau", "taunom", "b"];
-
 impl Columns {
-    /// Layout for `n` coordinates, `m` barriers and the extra columns `extra_names`
-    /// (e.g. `["loop_us", "overrun", "clamps"]`). An extra name must be non-empty, unique,
-    /// made of ASCII letters, digits and `_`, and not a standard name (`t`, `q3`, `b0`, …).
+    /// Layout for `n` coordinates named by [`coordinate_names`], `m` barriers labelled by
+    /// [`default_barrier_labels`] and the extra columns `extra_names` (see
+    /// [`Columns::named`]).
     pub fn new(n: usize, m: usize, extra_names: &[&str]) -> Result<Columns, RecordError> {
-        for (k, name) in extra_names.iter().enumerate() {
-            let refuse = |reason| {
-                Err(RecordError::ExtraName {
-                    name: (*name).to_string(),
-                    reason,
-                })
-            };
-            if name.is_empty() {
-                return refuse("it is empty");
+        let coordinates = coordinate_names(n);
+        let barriers = default_barrier_labels(m);
+        Columns::named(&as_strs(&coordinates), &as_strs(&barriers), extra_names)
+    }
+
+    /// Layout for `model`: its coordinates ([`coordinate_names`]), its barriers labelled as
+    /// its barrier table labels them, and the extra columns `extra_names`.
+    pub fn for_model(model: &Model, extra_names: &[&str]) -> Result<Columns, RecordError> {
+        let coordinates = coordinate_names(model.nq());
+        let coordinates: Vec<&str> = coordinates.iter().map(String::as_str).collect();
+        let labels: Vec<&str> = model
+            .generated
+            .barrier_table()
+            .iter()
+            .map(|b| b.label)
+            .collect();
+        Columns::named(&coordinates, &labels, extra_names)
+    }
+
+    /// Layout from the coordinates' names (ASCII letters, digits and `_`, e.g. `dx1`), the
+    /// barriers' labels (any text without brackets, e.g. `module 1 corner 3`) and the
+    /// extra columns' names (e.g. `read [us]`). No name may be empty, start or end with a
+    /// blank, or hold a comma, a quote or a control character; an extra name may not have
+    /// the form of a barrier column (`b … [m]`); every column name of the header must be
+    /// unique.
+    pub fn named(
+        coordinates: &[&str],
+        barriers: &[&str],
+        extra_names: &[&str],
+    ) -> Result<Columns, RecordError> {
+        let refuse = |what, name: &str, reason| {
+            Err(RecordError::ColumnName {
+                what,
+                name: name.to_string(),
+                reason,
+            })
+        };
+        for name in coordinates {
+            if let Some(reason) = csv_name_problem(name) {
+                return refuse("coordinate name", name, reason);
             }
             if !name.bytes().all(|c| c.is_ascii_alphanumeric() || c == b'_') {
-                return refuse("use only ASCII letters, digits and `_`");
-            }
-            if is_standard_name(name) {
-                return refuse("it is the name of a standard column");
-            }
-            if extra_names[..k].contains(name) {
-                return refuse("it is given twice");
+                return refuse(
+                    "coordinate name",
+                    name,
+                    "use only ASCII letters, digits and `_`",
+                );
             }
         }
-        Ok(Columns {
-            n,
-            m,
+        for label in barriers {
+            if let Some(reason) = csv_name_problem(label) {
+                return refuse("barrier label", label, reason);
+            }
+            if label.contains(['[', ']']) {
+                return refuse("barrier label", label, "brackets are kept for units");
+            }
+        }
+        for name in extra_names {
+            if let Some(reason) = csv_name_problem(name) {
+                return refuse("extra column name", name, reason);
+            }
+            if Group::B.strip(name).is_some() {
+                return refuse(
+                    "extra column name",
+                    name,
+                    "`b … [m]` is the form of a barrier column",
+                );
+            }
+        }
+        let columns = Columns {
+            coordinates: coordinates.iter().map(|s| (*s).to_string()).collect(),
+            barriers: barriers.iter().map(|s| (*s).to_string()).collect(),
             extra: extra_names.iter().map(|s| (*s).to_string()).collect(),
-        })
+        };
+        let mut names: Vec<(String, usize)> = (0..columns.width())
+            .filter_map(|k| columns.name(k).map(|name| (name, k)))
+            .collect();
+        names.sort();
+        if let Some(pair) = names.windows(2).find(|pair| pair[0].0 == pair[1].0) {
+            let (what, name) = columns.source_of(pair[0].1.max(pair[1].1));
+            return refuse(what, &name, "it makes a column name that is given twice");
+        }
+        Ok(columns)
+    }
+
+    /// What kind of name made column `index`, and that name.
+    fn source_of(&self, index: usize) -> (&'static str, String) {
+        let n = self.n();
+        let m = self.m();
+        if index == 0 {
+            ("time column", TIME.to_string())
+        } else if index <= 4 * n {
+            ("coordinate name", self.coordinates[(index - 1) % n].clone())
+        } else if index <= 4 * n + m {
+            ("barrier label", self.barriers[index - 1 - 4 * n].clone())
+        } else {
+            (
+                "extra column name",
+                self.extra
+                    .get(index - 1 - 4 * n - m)
+                    .cloned()
+                    .unwrap_or_default(),
+            )
+        }
     }
 
     /// Number of generalized coordinates `n`.
     pub fn n(&self) -> usize {
-        self.n
+        self.coordinates.len()
     }
 
     /// Number of barriers `m`.
     pub fn m(&self) -> usize {
-        self.m
+        self.barriers.len()
+    }
+
+    /// Names of the coordinates (e.g. `dx1`), in order.
+    pub fn coordinate_names(&self) -> &[String] {
+        &self.coordinates
+    }
+
+    /// Labels of the barriers (e.g. `module 1 corner 3`), in order.
+    pub fn barrier_labels(&self) -> &[String] {
+        &self.barriers
     }
 
     /// Names of the extra columns, in order.
@@ -158,20 +366,25 @@ impl Columns {
 
     /// Values per row: `1 + 4n + m + extras`.
     pub fn width(&self) -> usize {
-        1 + 4 * self.n + self.m + self.extra.len()
+        1 + 4 * self.n() + self.m() + self.extra.len()
     }
 
     /// Name of column `index` (0-based), as written in the header.
     pub fn name(&self, index: usize) -> Option<String> {
         if index == 0 {
-            return Some("t".to_string());
+            return Some(TIME.to_string());
         }
         let mut start = 1;
-        for (group, size) in GROUPS.iter().zip(self.group_sizes()) {
-            if index < start + size {
-                return Some(format!("{group}{}", index - start));
+        for group in Group::ALL {
+            let names = if group == Group::B {
+                &self.barriers
+            } else {
+                &self.coordinates
+            };
+            if let Some(name) = names.get(index - start) {
+                return Some(group.column(name));
             }
-            start += size;
+            start += names.len();
         }
         self.extra.get(index - start).cloned()
     }
@@ -187,18 +400,15 @@ impl Columns {
         names.join(",")
     }
 
-    fn group_sizes(&self) -> [usize; 5] {
-        [self.n, self.n, self.n, self.n, self.m]
-    }
-
     /// Checks the sizes of `row` against this layout.
     pub fn check(&self, row: &Row) -> Result<(), RecordError> {
+        let (n, m) = (self.n(), self.m());
         let fields = [
-            ("q", row.q.len(), self.n),
-            ("qd", row.qd.len(), self.n),
-            ("tau", row.tau.len(), self.n),
-            ("tau_nom", row.tau_nom.len(), self.n),
-            ("b", row.b.len(), self.m),
+            ("q", row.q.len(), n),
+            ("qd", row.qd.len(), n),
+            ("tau", row.tau.len(), n),
+            ("tau_nom", row.tau_nom.len(), n),
+            ("b", row.b.len(), m),
             ("extra", row.extra.len(), self.extra.len()),
         ];
         for (field, found, expected) in fields {
@@ -212,16 +422,6 @@ impl Columns {
         }
         Ok(())
     }
-}
-
-/// Whether `name` is `t` or a group name followed by decimal digits (`q0`, `taunom12`).
-fn is_standard_name(name: &str) -> bool {
-    name == "t"
-        || GROUPS.iter().any(|group| {
-            name.strip_prefix(group).is_some_and(|digits| {
-                !digits.is_empty() && digits.bytes().all(|c| c.is_ascii_digit())
-            })
-        })
 }
 
 /// One control tick, borrowed from the caller (SI units).
@@ -299,6 +499,32 @@ impl Record {
         &self.columns
     }
 
+    /// Replaces the names of the columns (e.g. the barrier labels of a robot file, for an
+    /// old log that has none) by `columns`, which must have the same numbers of
+    /// coordinates, barriers and extra columns; the values are kept.
+    pub fn relabel(&mut self, columns: Columns) -> Result<(), RecordError> {
+        let counts = [
+            ("coordinates", self.columns.n(), columns.n()),
+            ("barriers", self.columns.m(), columns.m()),
+            (
+                "extra columns",
+                self.columns.extra_names().len(),
+                columns.extra_names().len(),
+            ),
+        ];
+        for (what, expected, found) in counts {
+            if expected != found {
+                return Err(RecordError::Relabel {
+                    what,
+                    expected,
+                    found,
+                });
+            }
+        }
+        self.columns = columns;
+        Ok(())
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.data.len() / self.columns.width()
@@ -329,12 +555,12 @@ impl Record {
         let width = self.columns.width();
         let values = self.data.get(i * width..(i + 1) * width)?;
         let (t, rest) = values.split_first()?;
-        let n = self.columns.n;
+        let n = self.columns.n();
         let (q, rest) = rest.split_at(n);
         let (qd, rest) = rest.split_at(n);
         let (tau, rest) = rest.split_at(n);
         let (tau_nom, rest) = rest.split_at(n);
-        let (b, extra) = rest.split_at(self.columns.m);
+        let (b, extra) = rest.split_at(self.columns.m());
         Some(Row {
             t: *t,
             q,
@@ -369,33 +595,33 @@ impl Record {
 
     /// Coordinate `q_i` over all rows \[m\].
     pub fn q(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.group_column(0, i, self.columns.n)
+        self.group_column(0, i, self.columns.n())
     }
 
     /// Velocity `q̇_i` over all rows \[m/s\].
     pub fn qd(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.group_column(1, i, self.columns.n)
+        self.group_column(1, i, self.columns.n())
     }
 
     /// Applied command `τ_i` over all rows \[N\].
     pub fn tau(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.group_column(2, i, self.columns.n)
+        self.group_column(2, i, self.columns.n())
     }
 
     /// Nominal command `τ_nom,i` over all rows \[N\].
     pub fn tau_nom(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.group_column(3, i, self.columns.n)
+        self.group_column(3, i, self.columns.n())
     }
 
     /// Barrier `b_j` over all rows \[m\].
     pub fn b(&self, j: usize) -> impl Iterator<Item = f64> + '_ {
-        self.group_column(4, j, self.columns.m)
+        self.group_column(4, j, self.columns.m())
     }
 
     /// Column `k`-th of group `group` (0 = q … 4 = b); empty if `k` is out of range.
     fn group_column(&self, group: usize, k: usize, size: usize) -> impl Iterator<Item = f64> + '_ {
         let index = if k < size {
-            1 + self.columns.n * group + k
+            1 + self.columns.n() * group + k
         } else {
             usize::MAX
         };

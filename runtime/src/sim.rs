@@ -15,7 +15,7 @@ use crate::control::{self, Controller, ControllerError, TickStatus};
 use crate::integrator::IntegratorError;
 use crate::model::Model;
 use crate::plant::Plant;
-use crate::record::{Record, RecordError, Row};
+use crate::record::{Columns, Record, RecordError, Row};
 use crate::reference::ReferenceSignal;
 use crate::reference::ReferenceSpec;
 use crate::scenario::Scenario;
@@ -264,7 +264,7 @@ pub fn simulate(
         });
     }
     let ticks = (scenario.duration / scenario.control_period).round() as usize;
-    let mut record = Record::with_capacity(nq, nb, &[], ticks + 1)?;
+    let mut record = Record::for_columns(Columns::for_model(model, &[])?, ticks + 1);
     let table = model.generated.barrier_table();
 
     let mut counts = TickCounts::default();

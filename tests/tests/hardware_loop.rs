@@ -186,8 +186,12 @@ fn paper_set_point_barriers_held_against_the_emulator() {
     let record = Record::read_csv(&dir.join("trajectory.csv")).unwrap();
     assert_eq!(record.len() as u64, s.ticks);
     let header = record.columns().header();
-    assert!(header.starts_with("t,q0,q1,q2,q3,q4,q5,qd0,"), "{header}");
-    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read_us,compute_us,write_us,late_us,overrun,clamp_low,clamp_high,age_us,period_us,hold_us,gain_scale,f0,f1,f2,f3,f4,f5,qpred0,qpred1,qpred2,qpred3,qpred4,qpred5"), "{header}");
+    assert!(
+        header.starts_with("t [s],dx1 [m],dy1 [m],dL1 [m],dx2 [m],dy2 [m],dL2 [m],dx1/dt [m/s],"),
+        "{header}"
+    );
+    assert!(header.contains(",b module 1 corner 1 [m],"), "{header}");
+    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read [us],compute [us],write [us],late [us],overrun,clamp_low,clamp_high,age [us],period [us],hold [us],gain_scale,f module 1 tendon 1 [N],f module 1 tendon 2 [N],f module 1 tendon 3 [N],f module 2 tendon 1 [N],f module 2 tendon 2 [N],f module 2 tendon 3 [N],qpred dx1 [m],qpred dy1 [m],qpred dL1 [m],qpred dx2 [m],qpred dy2 [m],qpred dL2 [m]"), "{header}");
     for (k, row) in out.log.rows.iter().enumerate() {
         assert_eq!(record.row(k).unwrap().q, &row.1[..], "row {k}");
     }

@@ -5,8 +5,8 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use crate::model::Model;
-use crate::plot::draw_figures;
-use crate::record::{Columns, CsvWriter, Record, Row};
+use crate::plot::{FigureOptions, write_figures};
+use crate::record::{Columns, CsvWriter, Record, Row, as_strs, coordinate_names};
 use crate::sim::barriers_per_module;
 
 /// Where the loop writes its rows; flushed at every stop.
@@ -17,39 +17,51 @@ pub trait RunLog {
     fn flush(&mut self) -> Result<(), String>;
 }
 
-/// Names of the extra log columns for `servos` servos and `nq` coordinates: `fresh` (1: command from this
-/// tick's reading), `status` (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP
-/// failed, 4 invalid state), `attempts` (sync reads), `comm_errors` (held ticks in a row),
-/// `read_us`, `compute_us`, `write_us` (bus wait, software, write), `late_us` (start after
-/// schedule), `overrun` (0/1), `clamp_low`, `clamp_high`, `age_us` (age of the reading when
-/// the command reaches the servos), `period_us` (time since the previous command), `hold_us`
-/// (the hold period the controller assumed), `gain_scale` (the factor of the HOCBF gains,
-/// `nominal period / hold_us`), then `f0…` (tensions sent \[N\]), then `qpred0…` (the `q`
-/// the command was computed at: the state read, predicted `age_us` ahead). `q`, `q̇` and
-/// `b` are at the state read.
-pub fn extra_columns(servos: usize, nq: usize) -> Vec<String> {
+/// Names of the extra log columns for `servos` servos (servo `3i + k` pulls tendon `k` of
+/// module `i`) and the coordinates `coordinates` (as named in the CSV, `dx1`, …), each with
+/// its unit in brackets where it has one:
+///
+/// | column | meaning |
+/// |---|---|
+/// | `fresh` | 1: the command came from this tick's reading |
+/// | `status` | −1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP failed, 4 invalid state |
+/// | `attempts` | sync reads this tick |
+/// | `comm_errors` | ticks in a row without a reading (held) |
+/// | `read [us]`, `compute [us]`, `write [us]` | bus wait, software, write |
+/// | `late [us]` | start after schedule |
+/// | `overrun` | 0/1 |
+/// | `clamp_low`, `clamp_high` | tensions clamped at `f_min`, `f_max` this tick |
+/// | `age [us]` | age of the reading when the command reaches the servos |
+/// | `period [us]` | time since the previous command |
+/// | `hold [us]` | the hold period the controller assumed |
+/// | `gain_scale` | the factor of the HOCBF gains, `nominal period / hold` |
+/// | `f module i tendon k [N]` | tensions sent |
+/// | `qpred <c> [m]` | the `q` the command was computed at: the state read, predicted `age` ahead |
+///
+/// `q`, `q̇` and `b` are at the state read.
+pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
     let mut names: Vec<String> = [
         "fresh",
         "status",
         "attempts",
         "comm_errors",
-        "read_us",
-        "compute_us",
-        "write_us",
-        "late_us",
+        "read [us]",
+        "compute [us]",
+        "write [us]",
+        "late [us]",
         "overrun",
         "clamp_low",
         "clamp_high",
-        "age_us",
-        "period_us",
-        "hold_us",
+        "age [us]",
+        "period [us]",
+        "hold [us]",
         "gain_scale",
     ]
     .iter()
     .map(|s| s.to_string())
     .collect();
-    names.extend((0..servos).map(|k| format!("f{k}")));
-    names.extend((0..nq).map(|k| format!("qpred{k}")));
+    names.extend((0..servos).map(|s| format!("f module {} tendon {} [N]", s / 3 + 1, s % 3 + 1)));
+    names.extend(coordinates.iter().map(|c| format!("qpred {c} [m]")));
     names
 }
 
@@ -74,9 +86,8 @@ impl RunLog for CsvLog {
 
 /// Creates `dir/trajectory.csv` for a run of `model` on `servos` servos.
 pub fn open(dir: &Path, model: &Model, servos: usize) -> Result<CsvLog, String> {
-    let names = extra_columns(servos, model.nq());
-    let names: Vec<&str> = names.iter().map(String::as_str).collect();
-    let columns = Columns::new(model.nq(), model.nb(), &names).map_err(|e| e.to_string())?;
+    let names = extra_columns(servos, &coordinate_names(model.nq()));
+    let columns = Columns::for_model(model, &as_strs(&names)).map_err(|e| e.to_string())?;
     let path = dir.join("trajectory.csv");
     let writer = CsvWriter::create(&path, columns).map_err(|e| e.to_string())?;
     Ok(CsvLog { writer, path })
@@ -102,15 +113,13 @@ pub fn finish(
     if record.is_empty() {
         return Ok(files);
     }
+    let per_module = barriers_per_module(model.generated.barrier_table(), model.n_modules());
+    let options = FigureOptions {
+        barriers_per_module: &per_module,
+        ..FigureOptions::default()
+    };
     files.extend(
-        draw_figures(
-            dir,
-            "figure",
-            &[(title, &record)],
-            set_point,
-            &barriers_per_module(model.generated.barrier_table(), model.n_modules()),
-        )
-        .map_err(|e| e.to_string())?,
+        write_figures(dir, &[(title, &record)], set_point, &options).map_err(|e| e.to_string())?,
     );
     Ok(files)
 }

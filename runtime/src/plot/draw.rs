@@ -1,5 +1,6 @@
-//! Drawing one figure on a plotters backend (PNG or SVG): the column titles, the three
-//! panels of each column and the legend strip.
+//! Drawing one figure on a plotters backend (PNG or SVG): the column titles, the four
+//! panels of each column (time axis split or not), the labels of the barriers that reach
+//! zero, and the legend strip.
 
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
@@ -7,36 +8,32 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::series::{envelope, tick_decimals};
-use super::{COLUMN_WIDTH, FONT, Figure, TITLE_HEIGHT};
+use super::series::{envelope, tick_decimals, window};
+use super::style::{LineStyle, SET_POINT_DASH, barrier_style, coordinate_style, module_dash};
+use super::{
+    CAPTION_HEIGHT, COLUMN_WIDTH, FONT, Figure, LABEL_FONT, LABEL_LINE, LABEL_SAMPLE, MARGIN_LEFT,
+    MARGIN_RIGHT, PLOT_MARGIN, ROWS, SPLIT_SHARE, TITLE_HEIGHT, X_LABEL_HEIGHT, Y_LABEL_WIDTH,
+};
+use crate::record::Record;
 
-/// Line colours (colour-blind-friendly, after Tol's "bright" and "muted" schemes).
-const PALETTE: [RGBColor; 8] = [
-    RGBColor(0, 114, 178),
-    RGBColor(230, 159, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 51, 17),
-    RGBColor(120, 94, 240),
-    RGBColor(86, 180, 233),
-    RGBColor(136, 34, 85),
-    RGBColor(90, 90, 90),
-];
-
-fn colour(k: usize) -> RGBColor {
-    PALETTE[k % PALETTE.len()]
-}
-
-/// Dash pattern `(on, off)` \[px\] of module `module` (0-based): module 1 solid (`None`),
-/// module 2 dashed 9/6, further modules with shorter dashes, each different.
-fn dash(module: usize) -> Option<(i32, i32)> {
-    match module {
-        0 => None,
-        1 => Some((9, 6)),
-        _ => Some(((12 / module as i32).max(1), 4)),
-    }
-}
+/// Gap between the two parts of a split time axis \[px\].
+const SPLIT_GAP: u32 = 12;
 
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+type Area<DB> = DrawingArea<DB, Shift>;
+
+/// What each row of panels shows: caption and value-axis label.
+const ROW_TEXT: [(&str, &str); ROWS] = [
+    ("generalized coordinates q (set points dotted)", "q [m]"),
+    ("applied generalized force τ", "τ [N]"),
+    ("filter action τ − τ_nom", "τ − τ_nom [N]"),
+    ("barrier values b (those reaching 0 labelled)", "b [m]"),
+];
+
+fn rgb(style: LineStyle) -> RGBColor {
+    let (r, g, b) = style.colour;
+    RGBColor(r, g, b)
+}
 
 /// `v` with `decimals` decimals, without the sign of a value that rounds to zero.
 fn tick_label(v: f64, decimals: usize) -> String {
@@ -47,47 +44,54 @@ fn tick_label(v: f64, decimals: usize) -> String {
     }
 }
 
-/// Draws `points` as a line in the dash pattern of `module`.
+/// Draws `points` as a line of `style`, `width` pixels wide.
 fn draw_line<DB: DrawingBackend>(
     chart: &mut Chart<DB>,
     points: Vec<(f64, f64)>,
-    style: ShapeStyle,
-    module: usize,
+    style: LineStyle,
+    width: u32,
 ) -> Result<(), String> {
-    let result = match dash(module) {
+    let shape = rgb(style).stroke_width(width);
+    let result = match style.dash {
         None => chart
-            .draw_series(LineSeries::new(points, style))
+            .draw_series(LineSeries::new(points, shape))
             .map(|_| ()),
         Some((on, off)) => chart
-            .draw_series(DashedLineSeries::new(points, on, off, style))
+            .draw_series(DashedLineSeries::new(points, on, off, shape))
             .map(|_| ()),
     };
     result.map_err(|e| e.to_string())
 }
 
-/// Draws the figure on `root`.
-pub(super) fn draw<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    figure: &Figure,
+/// Draws the series `(times, values)` over the chart's time span, thinned to its width.
+fn draw_series<DB: DrawingBackend>(
+    chart: &mut Chart<DB>,
+    times: &[f64],
+    values: &[f64],
+    style: LineStyle,
 ) -> Result<(), String> {
+    let span = chart.x_range();
+    let (t, y) = window(times, values, span.start, span.end);
+    let buckets = chart.plotting_area().dim_in_pixel().0.max(1) as usize;
+    for segment in envelope(&t, &y, span.start, span.end, buckets) {
+        draw_line(chart, segment, style, 2)?;
+    }
+    Ok(())
+}
+
+/// Draws the figure on `root`.
+pub(super) fn draw<DB: DrawingBackend>(root: &Area<DB>, figure: &Figure) -> Result<(), String> {
     let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
     root.fill(&WHITE).map_err(e)?;
+    let columns = figure.panels.len();
     let (titles, body) = root.split_vertically(TITLE_HEIGHT);
-    let (charts, legend) = body.split_horizontally(COLUMN_WIDTH * figure.panels.len() as u32);
-    let title_cells = titles.split_evenly((1, figure.panels.len()));
-    let columns = charts.split_evenly((1, figure.panels.len()));
-    let legend_rows = legend.split_evenly((3, 1));
-    let captions = [
-        "generalized coordinates q",
-        "applied generalized force τ",
-        "barrier values b",
-    ];
-    let units = ["q [m]", "τ [N]", "b [m]"];
-    let buckets = COLUMN_WIDTH as usize;
+    let (charts, legend) = body.split_horizontally(COLUMN_WIDTH * columns as u32);
+    let title_cells = titles.split_evenly((1, columns));
+    let column_areas = charts.split_evenly((1, columns));
     for (c, ((title, record), (cell, column))) in figure
         .panels
         .iter()
-        .zip(title_cells.iter().zip(&columns))
+        .zip(title_cells.iter().zip(&column_areas))
         .enumerate()
     {
         let title_style = TextStyle::from((FONT, 24, FontStyle::Bold).into_font())
@@ -100,135 +104,345 @@ pub(super) fn draw<DB: DrawingBackend>(
         ))
         .map_err(e)?;
         let times: Vec<f64> = record.times().collect();
-        for (r, area) in column.split_evenly((3, 1)).iter().enumerate() {
-            let letter = (b'a' + (3 * c + r) as u8) as char;
-            let y_range = figure.rows[r].clone();
-            let decimals = tick_decimals(y_range.end - y_range.start);
-            let x_decimals = tick_decimals(figure.time.end - figure.time.start);
-            let y_format = |v: &f64| tick_label(*v, decimals);
-            let x_format = |v: &f64| tick_label(*v, x_decimals);
-            let mut chart = ChartBuilder::on(area)
-                .caption(format!("({letter}) {}", captions[r]), (FONT, 19))
-                .margin_left(6)
-                .margin_right(14)
-                .margin_top(4)
-                .margin_bottom(4)
-                .x_label_area_size(42)
-                .y_label_area_size(70)
-                .build_cartesian_2d(figure.time.clone(), y_range)
-                .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("t [s]")
-                .y_desc(units[r])
-                .x_labels(8)
-                .y_labels(6)
-                .x_label_formatter(&x_format)
-                .y_label_formatter(&y_format)
-                .label_style((FONT, 14))
-                .axis_desc_style((FONT, 16))
-                .bold_line_style(RGBColor(222, 222, 222))
-                .light_line_style(RGBColor(244, 244, 244))
-                .draw()
-                .map_err(e)?;
-            let span = (figure.time.start, figure.time.end);
-            match r {
-                0 | 1 => {
-                    for i in 0..record.columns().n() {
-                        let values: Vec<f64> = if r == 0 {
-                            record.q(i).collect()
-                        } else {
-                            record.tau(i).collect()
-                        };
-                        let style = colour(i).stroke_width(2);
-                        for segment in envelope(&times, &values, span.0, span.1, buckets) {
-                            draw_line(&mut chart, segment, style, 0)?;
-                        }
-                        if r == 0 && i < figure.set_point.len() {
-                            let target = figure.set_point[i];
-                            draw_line(
-                                &mut chart,
-                                vec![(span.0, target), (span.1, target)],
-                                style,
-                                1,
-                            )?;
-                        }
-                    }
-                }
-                _ => {
-                    chart
-                        .draw_series(LineSeries::new(
-                            [(span.0, 0.0), (span.1, 0.0)],
-                            BLACK.stroke_width(1),
-                        ))
-                        .map_err(e)?;
-                    for j in 0..record.columns().m() {
-                        let values: Vec<f64> = record.b(j).collect();
-                        let style = colour(figure.barrier_index(j)).stroke_width(2);
-                        for segment in envelope(&times, &values, span.0, span.1, buckets) {
-                            draw_line(&mut chart, segment, style, figure.barrier_module[j])?;
-                        }
-                    }
-                }
-            }
+        for (r, area) in column.split_evenly((ROWS, 1)).iter().enumerate() {
+            draw_panel(root, area, figure, c, r, record, &times)?;
         }
     }
-    for (r, area) in legend_rows.iter().enumerate() {
-        draw_legend(area, figure, r).map_err(e)?;
+    let (_, height) = legend.dim_in_pixel();
+    let row_height = height / ROWS as u32;
+    let (upper, lower) = legend.split_vertically(row_height * (ROWS as u32 - 1));
+    draw_coordinate_legend(&upper, figure).map_err(e)?;
+    draw_barrier_legend(&lower, figure).map_err(e)?;
+    Ok(())
+}
+
+/// Builds one chart of a panel over the times `span` with the panel's value range; the
+/// first part of a panel carries the value labels.
+fn build_chart<'a, DB: DrawingBackend>(
+    area: &'a Area<DB>,
+    figure: &Figure,
+    r: usize,
+    span: std::ops::Range<f64>,
+    first: bool,
+) -> Result<Chart<'a, DB>, String> {
+    let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
+    let y_range = figure.rows[r].clone();
+    // About one time label per 80 px.
+    let x_labels = (area.dim_in_pixel().0 / 80).clamp(2, 10) as usize;
+    let y_labels = 6;
+    let x_decimals = tick_decimals(span.end - span.start, x_labels);
+    let y_decimals = tick_decimals(y_range.end - y_range.start, y_labels - 1);
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .margin_top(PLOT_MARGIN)
+        .margin_bottom(PLOT_MARGIN)
+        .x_label_area_size(X_LABEL_HEIGHT);
+    if first {
+        builder
+            .margin_left(MARGIN_LEFT)
+            .y_label_area_size(Y_LABEL_WIDTH);
+    } else {
+        builder.margin_left(SPLIT_GAP);
+    }
+    let last = !first || figure.split.is_none();
+    builder.margin_right(if last { MARGIN_RIGHT } else { 0 });
+    let mut chart = builder
+        .build_cartesian_2d(span.clone(), y_range)
+        .map_err(e)?;
+    let x_format = |v: &f64| tick_label(*v, x_decimals);
+    let y_format = |v: &f64| tick_label(*v, y_decimals);
+    let mut mesh = chart.configure_mesh();
+    mesh.x_labels(x_labels)
+        .y_labels(y_labels)
+        .x_label_formatter(&x_format)
+        .y_label_formatter(&y_format)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .bold_line_style(RGBColor(222, 222, 222))
+        .light_line_style(RGBColor(244, 244, 244));
+    if first {
+        mesh.y_desc(ROW_TEXT[r].1);
+    }
+    mesh.draw().map_err(e)?;
+    Ok(chart)
+}
+
+/// Draws panel `r` of column `c` (record `record`, times `times`) into `area`.
+fn draw_panel<DB: DrawingBackend>(
+    root: &Area<DB>,
+    area: &Area<DB>,
+    figure: &Figure,
+    c: usize,
+    r: usize,
+    record: &Record,
+    times: &[f64],
+) -> Result<(), String> {
+    let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
+    let (caption, plot) = area.split_vertically(CAPTION_HEIGHT);
+    let letter = (b'a' + ((ROWS * c + r) % 26) as u8) as char;
+    let (w, h) = caption.dim_in_pixel();
+    caption
+        .draw(&Text::new(
+            format!("({letter}) {}", ROW_TEXT[r].0),
+            (w as i32 / 2, h as i32 / 2 + 2),
+            TextStyle::from((FONT, 18).into_font()).pos(Pos::new(HPos::Center, VPos::Center)),
+        ))
+        .map_err(e)?;
+    let (start, end) = figure.window;
+    let (width, height) = plot.dim_in_pixel();
+    let mut charts = Vec::with_capacity(2);
+    match figure.split {
+        Some(at) => {
+            let inner =
+                width.saturating_sub(Y_LABEL_WIDTH + MARGIN_LEFT + MARGIN_RIGHT + SPLIT_GAP);
+            let left_width = Y_LABEL_WIDTH + MARGIN_LEFT + (inner as f64 * SPLIT_SHARE) as u32;
+            let (left, right) = plot.split_horizontally(left_width);
+            // The areas must outlive the charts built on them: keep them in a Vec first.
+            charts.push((left, start..at, true));
+            charts.push((right, at..end, false));
+        }
+        None => charts.push((plot.clone(), start..end, true)),
+    }
+    let mut built = Vec::with_capacity(charts.len());
+    for (area, span, first) in &charts {
+        built.push(build_chart(area, figure, r, span.clone(), *first)?);
+    }
+    for chart in &mut built {
+        draw_data(chart, figure, r, record, times)?;
+    }
+    // The time axis's name, once under the middle of the plot.
+    let middle =
+        Y_LABEL_WIDTH + MARGIN_LEFT + (width.saturating_sub(Y_LABEL_WIDTH + MARGIN_LEFT)) / 2;
+    plot.draw(&Text::new(
+        "t [s]",
+        (middle as i32, height as i32 - 12),
+        TextStyle::from((FONT, 16).into_font()).pos(Pos::new(HPos::Center, VPos::Center)),
+    ))
+    .map_err(e)?;
+    if let [left, right] = &built[..] {
+        draw_break(root, left, right).map_err(e)?;
+    }
+    if r == ROWS - 1
+        && let (Some(first), Some(last)) = (built.first(), built.last())
+    {
+        draw_active_labels(root, first, last, figure, c).map_err(e)?;
     }
     Ok(())
 }
 
-/// The legend of row `r` in the strip at the right.
-fn draw_legend<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
+/// Draws the lines of row `r` on `chart`.
+fn draw_data<DB: DrawingBackend>(
+    chart: &mut Chart<DB>,
     figure: &Figure,
     r: usize,
-) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    let mut entries: Vec<(String, RGBColor, usize)> = Vec::new();
+    record: &Record,
+    times: &[f64],
+) -> Result<(), String> {
+    let span = chart.x_range();
+    let n = record.columns().n();
+    if r == 2 || r == 3 {
+        let zero = if r == 3 {
+            BLACK.stroke_width(1)
+        } else {
+            RGBColor(120, 120, 120).stroke_width(1)
+        };
+        chart
+            .draw_series(LineSeries::new([(span.start, 0.0), (span.end, 0.0)], zero))
+            .map_err(|e| e.to_string())?;
+    }
     match r {
-        0 | 1 => {
-            for (i, label) in figure.labels.iter().enumerate() {
-                entries.push((label.clone(), colour(i), 0));
-            }
-            if r == 0 && !figure.set_point.is_empty() {
-                entries.push(("set point".to_string(), RGBColor(90, 90, 90), 1));
+        0..=2 => {
+            for i in 0..n {
+                let values: Vec<f64> = match r {
+                    0 => record.q(i).collect(),
+                    1 => record.tau(i).collect(),
+                    _ => record
+                        .tau(i)
+                        .zip(record.tau_nom(i))
+                        .map(|(a, b)| a - b)
+                        .collect(),
+                };
+                let style = coordinate_style(i);
+                draw_series(chart, times, &values, style)?;
+                if r == 0
+                    && let Some(&target) = figure.set_point.get(i)
+                {
+                    let dotted = LineStyle {
+                        dash: Some(SET_POINT_DASH),
+                        ..style
+                    };
+                    draw_line(
+                        chart,
+                        vec![(span.start, target), (span.end, target)],
+                        dotted,
+                        2,
+                    )?;
+                }
             }
         }
         _ => {
-            let most = (0..figure.barrier_module.len())
-                .map(|j| figure.barrier_index(j) + 1)
-                .max()
-                .unwrap_or(0);
-            for module in 0..figure.modules {
-                entries.push((
-                    format!("module {}", module + 1),
-                    RGBColor(60, 60, 60),
-                    module,
-                ));
+            for j in 0..record.columns().m() {
+                let values: Vec<f64> = record.b(j).collect();
+                let style = barrier_style(figure.barrier_module[j], figure.barrier_index[j]);
+                draw_series(chart, times, &values, style)?;
             }
-            for k in 0..most {
-                entries.push((format!("corner {}", k + 1), colour(k), 0));
-            }
-            entries.push(("b = 0".to_string(), BLACK, 0));
         }
     }
+    Ok(())
+}
+
+/// Two slanted strokes on the time axis between the parts of a split axis.
+fn draw_break<DB: DrawingBackend>(
+    root: &Area<DB>,
+    left: &Chart<DB>,
+    right: &Chart<DB>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let (left_x, left_y) = left.plotting_area().get_pixel_range();
+    let (right_x, _) = right.plotting_area().get_pixel_range();
+    let style = BLACK.stroke_width(1);
+    for y in [left_y.start, left_y.end - 1] {
+        for x in [left_x.end, right_x.start] {
+            root.draw(&PathElement::new(
+                vec![(x - 4, y + 6), (x + 4, y - 6)],
+                style,
+            ))?;
+        }
+    }
+    Ok(())
+}
+
+/// The labels of column `c`'s barriers that reach zero, each with a sample of its line:
+/// a block right-aligned in the panel (from `first` part to `last`) just below the lowest
+/// value of these barriers, hence below every line, on a white ground.
+fn draw_active_labels<DB: DrawingBackend>(
+    root: &Area<DB>,
+    first: &Chart<DB>,
+    last: &Chart<DB>,
+    figure: &Figure,
+    c: usize,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let active = &figure.active[c];
+    let Some(lowest) = active.iter().map(|a| a.low).reduce(f64::min) else {
+        return Ok(());
+    };
+    let labels = figure.panels[c].1.columns().barrier_labels();
+    let (left_x, _) = first.plotting_area().get_pixel_range();
+    let (right_x, y_range) = last.plotting_area().get_pixel_range();
+    let (_, top) = first.backend_coord(&(first.x_range().start, lowest));
+    let font =
+        TextStyle::from((FONT, LABEL_FONT).into_font()).pos(Pos::new(HPos::Left, VPos::Center));
+    let grid = figure.grid;
+    let line = LABEL_LINE as i32;
+    let columns = grid.columns.min(active.len()).max(1);
+    let block_left = (right_x.end - 4 - columns as i32 * grid.cell as i32).max(left_x.start);
+    let block_top = (top + 3).min(y_range.end - line * grid.rows(active.len()) as i32);
+    root.draw(&Rectangle::new(
+        [
+            (block_left, block_top),
+            (
+                right_x.end - 2,
+                block_top + line * grid.rows(active.len()) as i32,
+            ),
+        ],
+        WHITE.mix(0.85).filled(),
+    ))?;
+    for (k, a) in active.iter().enumerate() {
+        let x = block_left + (k % columns) as i32 * grid.cell as i32 + 4;
+        let y = block_top + line / 2 + line * (k / columns) as i32;
+        let style = barrier_style(
+            figure.barrier_module[a.barrier],
+            figure.barrier_index[a.barrier],
+        );
+        let shape = rgb(style).stroke_width(2);
+        let points = vec![(x, y), (x + LABEL_SAMPLE as i32 - 8, y)];
+        match style.dash {
+            None => root.draw(&PathElement::new(points, shape))?,
+            Some((on, off)) => root.draw(&DashedPathElement::new(points, on, off, shape))?,
+        }
+        let text = labels.get(a.barrier).cloned().unwrap_or_default();
+        root.draw(&Text::new(text, (x + LABEL_SAMPLE as i32, y), font.clone()))?;
+    }
+    Ok(())
+}
+
+/// One legend entry: name, colour and dash, line width.
+type Entry = (String, RGBColor, Option<(u32, u32)>, u32);
+
+/// Draws `entries` one under another from the top of `area`.
+fn draw_entries<DB: DrawingBackend>(
+    area: &Area<DB>,
+    title: &str,
+    entries: Vec<Entry>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let font = (FONT, 16).into_font();
-    // Entries 22 px apart, closer if that is needed to fit them all in the row.
     let top = 48;
+    area.draw(&Text::new(
+        title.to_string(),
+        (8, top - 30),
+        (FONT, 15, FontStyle::Bold).into_font(),
+    ))?;
+    // Entries 22 px apart, closer if that is needed to fit them all.
     let (_, height) = area.dim_in_pixel();
     let room = (height as i32 - top - 8).max(0);
     let line_height = (room / entries.len().max(1) as i32).clamp(8, 22);
-    for (k, (label, colour, module)) in entries.into_iter().enumerate() {
+    for (k, (label, colour, dash, width)) in entries.into_iter().enumerate() {
         let y = top + line_height * k as i32;
         let points = vec![(8, y), (44, y)];
-        let width = if label == "b = 0" { 1 } else { 2 };
         let style = colour.stroke_width(width);
-        match dash(module) {
+        match dash {
             None => area.draw(&PathElement::new(points, style))?,
             Some((on, off)) => area.draw(&DashedPathElement::new(points, on, off, style))?,
         }
         area.draw(&Text::new(label, (52, y - 9), font.clone()))?;
     }
     Ok(())
+}
+
+/// The legend of the coordinates (rows a–c), with the set point.
+fn draw_coordinate_legend<DB: DrawingBackend>(
+    area: &Area<DB>,
+    figure: &Figure,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let mut entries: Vec<Entry> = figure
+        .labels
+        .iter()
+        .enumerate()
+        .map(|(i, label)| {
+            let style = coordinate_style(i);
+            (label.clone(), rgb(style), style.dash, 2)
+        })
+        .collect();
+    if !figure.set_point.is_empty() {
+        entries.push((
+            "set point".to_string(),
+            RGBColor(90, 90, 90),
+            Some(SET_POINT_DASH),
+            2,
+        ));
+    }
+    draw_entries(area, "coordinates", entries)
+}
+
+/// The legend of the barriers (row d): the dash of each module, the colour of each
+/// barrier within a module, the zero line.
+fn draw_barrier_legend<DB: DrawingBackend>(
+    area: &Area<DB>,
+    figure: &Figure,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let mut entries: Vec<Entry> = Vec::new();
+    if figure.modules > 1 {
+        for module in 0..figure.modules {
+            entries.push((
+                format!("module {}", module + 1),
+                RGBColor(60, 60, 60),
+                module_dash(module),
+                2,
+            ));
+        }
+    }
+    for (k, name) in figure.key_names.iter().enumerate() {
+        entries.push((name.clone(), rgb(barrier_style(0, k)), None, 2));
+    }
+    entries.push(("b = 0".to_string(), BLACK, None, 1));
+    draw_entries(area, "barriers", entries)
 }

@@ -1,22 +1,110 @@
-//! Data preparation for the figures: legend names of the coordinates, the min/max envelope
-//! that thins long series, and axis ranges with their tick precision.
+//! Data preparation for the figures: names of the coordinates, the part of a series in a
+//! time window, when a run settles, the min/max envelope that thins long series, and axis
+//! ranges with their tick precision.
 
-/// Legend names of the coordinates: `Δx₁, Δy₁, δL₁, Δx₂, …` when `n` is a multiple of 3
-/// (docs/model.md §1), else `q0, q1, …`.
-pub fn coordinate_labels(n: usize) -> Vec<String> {
-    if n == 0 || !n.is_multiple_of(3) {
-        return (0..n).map(|k| format!("q{k}")).collect();
+/// How a coordinate named in a CSV column (see [`crate::record::coordinate_names`]) is
+/// shown in a figure: `dx1 → Δx₁`, `dy2 → Δy₂`, `dL12 → δL₁₂`; any other name as it is.
+pub fn display_name(name: &str) -> String {
+    let symbols = [("dx", "Δx"), ("dy", "Δy"), ("dL", "δL")];
+    for (ascii, symbol) in symbols {
+        if let Some(digits) = name.strip_prefix(ascii)
+            && !digits.is_empty()
+            && digits.bytes().all(|c| c.is_ascii_digit())
+        {
+            let subscript: String = digits
+                .chars()
+                .map(|c| char::from_u32(0x2080 + c.to_digit(10).unwrap_or(0)).unwrap_or(c))
+                .collect();
+            return format!("{symbol}{subscript}");
+        }
     }
-    let subscript = |module: usize| -> String {
-        module
-            .to_string()
-            .chars()
-            .map(|c| char::from_u32(0x2080 + c.to_digit(10).unwrap_or(0)).unwrap_or(c))
-            .collect()
+    name.to_string()
+}
+
+/// The part of the series `(t_k, y_k)` inside `[start, end]`: the points within, and where
+/// the series enters or leaves the window between two finite points, the point on the
+/// straight line between them at the window's edge (so that lines run to the edge).
+pub fn window(t: &[f64], y: &[f64], start: f64, end: f64) -> (Vec<f64>, Vec<f64>) {
+    let (mut times, mut values) = (Vec::new(), Vec::new());
+    let inside = |time: f64| (start..=end).contains(&time);
+    let mut previous: Option<(f64, f64)> = None;
+    for (&time, &value) in t.iter().zip(y) {
+        if let Some((t0, y0)) = previous
+            && time.is_finite()
+            && t0.is_finite()
+            && time > t0
+        {
+            for edge in [start, end] {
+                // The segment crosses the edge with one end strictly outside.
+                let crosses = (t0 < edge && edge < time) && (!inside(t0) || !inside(time));
+                if crosses {
+                    let s = (edge - t0) / (time - t0);
+                    times.push(edge);
+                    values.push(y0 + s * (value - y0));
+                }
+            }
+        }
+        if inside(time) {
+            times.push(time);
+            values.push(value);
+        }
+        previous = Some((time, value));
+    }
+    (times, values)
+}
+
+/// When a run's coordinates settle: the last time at which some coordinate is further
+/// than `tolerance` from its last value (only finite values count); the first time if none
+/// ever is. `series` holds each coordinate's values at the times `t`. `None` when there is
+/// no finite value.
+pub fn settle_time(t: &[f64], series: &[Vec<f64>], tolerance: f64) -> Option<f64> {
+    let finite = |k: usize, y: &[f64]| {
+        t.get(k).is_some_and(|x| x.is_finite()) && y.get(k).is_some_and(|v| v.is_finite())
     };
-    (0..n)
-        .map(|k| format!("{}{}", ["Δx", "Δy", "δL"][k % 3], subscript(k / 3 + 1)))
-        .collect()
+    let mut settled: Option<f64> = None;
+    for y in series {
+        let Some(end) = (0..y.len()).rev().find(|&k| finite(k, y)) else {
+            continue;
+        };
+        let first = (0..y.len()).find(|&k| finite(k, y)).unwrap_or(end);
+        let out = (0..y.len())
+            .rev()
+            .find(|&k| finite(k, y) && (y[k] - y[end]).abs() > tolerance);
+        let time = t[out.unwrap_or(first)];
+        settled = Some(settled.map_or(time, |s| s.max(time)));
+    }
+    settled
+}
+
+/// The largest excursion `max − min` of the finite values of any of `series` (0 if none).
+pub fn excursion(series: &[Vec<f64>]) -> f64 {
+    series
+        .iter()
+        .map(|y| {
+            let mut range = Range::EMPTY;
+            range.cover(y.iter().copied());
+            if range.low <= range.high {
+                range.high - range.low
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The smallest of `1, 1.5, 2, 2.5, 3, 4, 5, 6, 8` times a power of ten that is at least
+/// `x` (`x` positive and finite; anything else is returned as it is).
+pub fn nice_ceil(x: f64) -> f64 {
+    if !(x.is_finite() && x > 0.0) {
+        return x;
+    }
+    let power = 10f64.powf(x.log10().floor());
+    let steps = [1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0];
+    steps
+        .iter()
+        .map(|s| s * power)
+        .find(|v| *v >= x * (1.0 - 1e-12))
+        .unwrap_or(10.0 * power)
 }
 
 /// A point of a series with its index: `(k, t_k, y_k)`.
@@ -114,8 +202,8 @@ pub fn envelope(
 /// A value range `[low, high]` grown to cover `values` (non-finite ones ignored).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Range {
-    low: f64,
-    high: f64,
+    pub(super) low: f64,
+    pub(super) high: f64,
 }
 
 impl Range {
@@ -155,9 +243,9 @@ impl Range {
     }
 }
 
-/// Decimals that tell apart ticks about `span / 5` apart.
-pub(super) fn tick_decimals(span: f64) -> usize {
-    let step = span / 5.0;
+/// Decimals that tell apart ticks about `span / labels` apart.
+pub(super) fn tick_decimals(span: f64, labels: usize) -> usize {
+    let step = span / labels.max(1) as f64;
     if !(step.is_finite() && step > 0.0) {
         return 2;
     }

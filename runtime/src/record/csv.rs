@@ -10,7 +10,7 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use super::{Columns, GROUPS, Record, RecordError, Row};
+use super::{Columns, Group, Record, RecordError, Row, TIME};
 
 /// First capacity of the streaming writer's line buffer (a row of the paper robot with the
 /// hardware log's columns is about 800 bytes); it grows once if a row is longer.
@@ -115,8 +115,9 @@ impl Record {
     }
 }
 
-/// Reads the layout from a header line: `t`, then `q0…`, `qd0…`, `tau0…`, `taunom0…`
-/// (all of one length `n`), `b0…`, then extra names.
+/// Reads the layout from a header line: the current form (`t [s]`, `<c> [m]`…,
+/// `<c>/dt [m/s]`…, `tau <c> [N]`…, `tau_nom <c> [N]`…, `b <label> [m]`…, extras) or the
+/// older one (`t`, `q0…`, `qd0…`, `tau0…`, `taunom0…`, `b0…`, extras).
 fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
     let names: Vec<&str> = line.split(',').map(str::trim).collect();
     let mismatch = |column: usize, expected: String| RecordError::Header {
@@ -125,9 +126,85 @@ fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
         found: names.get(column).unwrap_or(&"<end of line>").to_string(),
         expected,
     };
-    if names[0] != "t" {
-        return Err(mismatch(0, "`t`".to_string()));
+    match names[0] {
+        TIME => parse_named(&names, &mismatch),
+        "t" => parse_legacy(&names, &mismatch),
+        _ => Err(mismatch(
+            0,
+            format!("`{TIME}` (or `t` in logs written before the named columns)"),
+        )),
     }
+}
+
+/// The layout of a header in the current form (`names[0]` is `t [s]`).
+fn parse_named(
+    names: &[&str],
+    mismatch: &dyn Fn(usize, String) -> RecordError,
+) -> Result<Columns, RecordError> {
+    // The coordinates run up to the first velocity column (a coordinate name has no `/`).
+    let n = names[1..]
+        .iter()
+        .position(|name| Group::Qd.strip(name).is_some())
+        .unwrap_or(0);
+    let looks_like_coordinate = |name: &str| {
+        Group::Q.strip(name).is_some_and(|inner| {
+            inner
+                .bytes()
+                .all(|c| c.is_ascii_alphanumeric() || c == b'_')
+        })
+    };
+    if n == 0 && names.get(1).is_some_and(|name| looks_like_coordinate(name)) {
+        let k = 1 + names[1..]
+            .iter()
+            .take_while(|name| looks_like_coordinate(name))
+            .count();
+        return Err(mismatch(
+            k,
+            format!(
+                "the velocity column `{}`",
+                Group::Qd.column(Group::Q.strip(names[1]).unwrap_or_default())
+            ),
+        ));
+    }
+    let mut coordinates = Vec::with_capacity(n);
+    for (k, column) in names.iter().enumerate().take(n + 1).skip(1) {
+        let name = Group::Q
+            .strip(column)
+            .ok_or_else(|| mismatch(k, "a coordinate column `<name> [m]`".to_string()))?;
+        coordinates.push(name);
+    }
+    for (g, group) in [Group::Qd, Group::Tau, Group::TauNom]
+        .into_iter()
+        .enumerate()
+    {
+        for (i, name) in coordinates.iter().enumerate() {
+            let k = 1 + (g + 1) * n + i;
+            let expected = group.column(name);
+            if names.get(k) != Some(&expected.as_str()) {
+                return Err(mismatch(
+                    k,
+                    format!("`{expected}` (n = {n} from the coordinate columns)"),
+                ));
+            }
+        }
+    }
+    let first_barrier = 1 + 4 * n;
+    let barriers: Vec<&str> = names[first_barrier.min(names.len())..]
+        .iter()
+        .map_while(|name| Group::B.strip(name))
+        .collect();
+    let first_extra = first_barrier + barriers.len();
+    let extra = &names[first_extra.min(names.len())..];
+    Columns::named(&coordinates, &barriers, extra)
+        .map_err(|error| name_mismatch(error, names, mismatch))
+}
+
+/// The layout of a header in the older form (`names[0]` is `t`): `q0…` give `n`, the
+/// coordinates get the standard names and the barriers the default labels.
+fn parse_legacy(
+    names: &[&str],
+    mismatch: &dyn Fn(usize, String) -> RecordError,
+) -> Result<Columns, RecordError> {
     // Length of the run `group0, group1, …` starting at `start`.
     let run = |group: &str, start: usize| {
         names[start.min(names.len())..]
@@ -136,9 +213,9 @@ fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
             .take_while(|(k, name)| **name == format!("{group}{k}"))
             .count()
     };
-    let n = run(GROUPS[0], 1);
+    let n = run(LEGACY_GROUPS[0], 1);
     let mut next = 1 + n;
-    for group in &GROUPS[1..4] {
+    for group in &LEGACY_GROUPS[1..4] {
         let found = run(group, next);
         if found != n {
             return Err(mismatch(
@@ -148,19 +225,52 @@ fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
         }
         next += n;
     }
-    let m = run(GROUPS[4], next);
+    let m = run(LEGACY_GROUPS[4], next);
     next += m;
-    let extra: Vec<&str> = names[next..].to_vec();
-    Columns::new(n, m, &extra).map_err(|error| {
-        let bad = match &error {
-            RecordError::ExtraName { name, .. } => extra.iter().position(|e| e == name),
-            _ => None,
-        };
-        mismatch(
-            next + bad.unwrap_or(0),
-            format!("a valid extra column name ({error})"),
-        )
-    })
+    let extra = &names[next.min(names.len())..];
+    if let Some(k) = extra.iter().position(|name| is_legacy_standard(name)) {
+        return Err(mismatch(
+            next + k,
+            "an extra column name, not a standard one out of place".to_string(),
+        ));
+    }
+    Columns::new(n, m, extra).map_err(|error| name_mismatch(error, names, mismatch))
+}
+
+/// A name refused by [`Columns::named`] as a header error at its column.
+fn name_mismatch(
+    error: RecordError,
+    names: &[&str],
+    mismatch: &dyn Fn(usize, String) -> RecordError,
+) -> RecordError {
+    let column = match &error {
+        RecordError::ColumnName { what, name, .. } => {
+            let formed = match *what {
+                "coordinate name" => Group::Q.column(name),
+                "barrier label" => Group::B.column(name),
+                _ => name.clone(),
+            };
+            names
+                .iter()
+                .rposition(|column| *column == formed)
+                .unwrap_or(0)
+        }
+        _ => 0,
+    };
+    mismatch(column, format!("a valid column name ({error})"))
+}
+
+/// Base names of the column groups of the older header, in column order.
+const LEGACY_GROUPS: [&str; 5] = ["q", "qd", "tau", "taunom", "b"];
+
+/// Whether `name` is `t` or an older group name followed by decimal digits (`q0`, `b12`).
+fn is_legacy_standard(name: &str) -> bool {
+    name == "t"
+        || LEGACY_GROUPS.iter().any(|group| {
+            name.strip_prefix(group).is_some_and(|digits| {
+                !digits.is_empty() && digits.bytes().all(|c| c.is_ascii_digit())
+            })
+        })
 }
 
 /// Streams rows to a CSV file as they come, for a run too long or too fragile to hold in

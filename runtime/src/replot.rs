@@ -1,0 +1,364 @@
+//! `softcbf plot`: the figures redrawn from trajectory CSVs or hardware logs, without
+//! running anything again; titles and set point from the `summary.json` beside each file.
+//!
+//! ```no_run
+//! use softcbf::plot::FigureOptions;
+//! use softcbf::replot::replot;
+//! let files = ["out/trajectory.csv".into(), "out/trajectory_pd.csv".into()];
+//! let written = replot(&files, None, None, &FigureOptions::default())?;
+//! assert_eq!(written.len(), 2); // out/figure.png, out/figure.svg
+//! # Ok::<(), softcbf::replot::ReplotError>(())
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use serde_json::Value;
+
+use crate::model::Model;
+use crate::output::Console;
+use crate::plot::{FigureOptions, PlotError, Split, controller_title, write_figures};
+use crate::record::{Columns, Record, RecordError, as_strs};
+use crate::sim::barriers_per_module;
+
+/// Why figures could not be redrawn. Each names the file at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplotError {
+    /// No file was given.
+    #[error("no trajectory file given")]
+    NoFiles,
+    /// A trajectory file could not be read (file, line and column named).
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// A `summary.json` could not be read or parsed.
+    #[error("{}{}: {message}", file.display(), line.map_or(String::new(), |l| format!(":{l}")))]
+    Summary {
+        /// The summary file.
+        file: PathBuf,
+        /// 1-based line, when the parser gives one.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file does not have the first file's numbers of coordinates or barriers.
+    #[error("{}: {found} {what}, but {} has {expected}", file.display(), first.display())]
+    Mismatch {
+        /// The file.
+        file: PathBuf,
+        /// The first file.
+        first: PathBuf,
+        /// `coordinates` or `barriers`.
+        what: &'static str,
+        /// The first file's count.
+        expected: usize,
+        /// This file's count.
+        found: usize,
+    },
+    /// The robot given does not fit a file.
+    #[error("{}: {found} {what}, but the robot `{robot}` has {expected}", file.display())]
+    Robot {
+        /// The file.
+        file: PathBuf,
+        /// The robot's name.
+        robot: String,
+        /// `coordinates` or `barriers`.
+        what: &'static str,
+        /// The robot's count.
+        expected: usize,
+        /// The file's count.
+        found: usize,
+    },
+    /// The figures could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+/// The arguments of `softcbf plot`.
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// Trajectory CSVs of `simulate` or logs of `run`; several are drawn side by side.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Output directory (default: the directory of the first file).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Robot file whose barrier labels and modules the figures use (default: the labels
+    /// in the files' headers).
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Time window `START,END` in seconds (default: the whole run).
+    #[arg(long, value_name = "START,END", allow_hyphen_values = true)]
+    pub t_range: Option<String>,
+    /// Where the time axis splits into the transient and the rest: `auto` (where the
+    /// motion settles), `off`, or a time in seconds.
+    #[arg(long, default_value = "auto", value_name = "auto|off|SECONDS")]
+    pub split: String,
+}
+
+/// `softcbf plot`: reads the files, draws the figures, says what it wrote.
+pub fn plot(args: PlotArgs, console: &mut Console) -> Result<u8, String> {
+    let time_range = args.t_range.as_deref().map(parse_time_range).transpose()?;
+    let split = parse_split(&args.split)?;
+    let model = match &args.robot {
+        Some(path) => {
+            let robot = crate::cli::load_robot(Some(path)).map_err(|e| e.to_string())?;
+            Some(Model::new(robot).map_err(|e| e.to_string())?)
+        }
+        None => None,
+    };
+    let options = FigureOptions {
+        time_range,
+        split,
+        ..FigureOptions::default()
+    };
+    let written = replot(&args.files, args.out.as_deref(), model.as_ref(), &options)
+        .map_err(|e| e.to_string())?;
+    let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+    console.say(&format!("wrote {}", names.join(", ")));
+    if let Some(error) = console.error() {
+        return Err(error.to_string());
+    }
+    Ok(crate::exit::OK)
+}
+
+/// `START,END` \[s\] of `--t-range`.
+pub fn parse_time_range(text: &str) -> Result<(f64, f64), String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [start, end] = parts[..] else {
+        return Err(format!(
+            "--t-range: `{text}`: give two times in seconds, START,END (e.g. 0,2)"
+        ));
+    };
+    let number = |part: &str| {
+        part.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("--t-range: `{part}` is not a finite number of seconds"))
+    };
+    let (start, end) = (number(start)?, number(end)?);
+    if start >= end {
+        return Err(format!(
+            "--t-range: the start {start} s must be below the end {end} s"
+        ));
+    }
+    Ok((start, end))
+}
+
+/// `auto`, `off` or a time \[s\] of `--split`.
+pub fn parse_split(text: &str) -> Result<Split, String> {
+    match text.trim() {
+        "auto" => Ok(Split::Auto),
+        "off" => Ok(Split::Off),
+        other => other
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .map(Split::At)
+            .ok_or_else(|| format!("--split: `{other}`: give `auto`, `off` or a time in seconds")),
+    }
+}
+
+/// What the `summary.json` beside a file says about that file's run.
+#[derive(Debug, Default)]
+struct RunFacts {
+    controller: Option<String>,
+    set_point: Option<Vec<f64>>,
+}
+
+/// Reads `summary.json` beside `file`, if there is one, and picks the part about `file`:
+/// the `comparison` object for a `…_pd.csv` file (as `softcbf simulate` writes them), the
+/// whole summary otherwise.
+fn facts_for(file: &Path) -> Result<RunFacts, ReplotError> {
+    let summary_path = file
+        .parent()
+        .unwrap_or_else(|| Path::new(""))
+        .join("summary.json");
+    let text = match std::fs::read_to_string(&summary_path) {
+        Ok(text) => text,
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(RunFacts::default());
+        }
+        Err(error) => {
+            return Err(ReplotError::Summary {
+                file: summary_path,
+                line: None,
+                message: error.to_string(),
+            });
+        }
+    };
+    let summary: Value = serde_json::from_str(&text).map_err(|error| ReplotError::Summary {
+        file: summary_path.clone(),
+        line: Some(error.line()),
+        message: error.to_string(),
+    })?;
+    let is_comparison = file
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .is_some_and(|stem| stem.ends_with("_pd"));
+    let part = match summary.get("comparison") {
+        Some(comparison) if is_comparison => comparison,
+        _ => &summary,
+    };
+    let controller = part
+        .get("controller")
+        .and_then(Value::as_str)
+        .map(str::to_string);
+    let set_point = match part.get("set_point").or_else(|| summary.get("set_point")) {
+        None | Some(Value::Null) => None,
+        Some(value) => {
+            let numbers: Option<Vec<f64>> = value
+                .as_array()
+                .and_then(|items| items.iter().map(Value::as_f64).collect());
+            Some(numbers.ok_or_else(|| ReplotError::Summary {
+                file: summary_path.clone(),
+                line: None,
+                message: "field `set_point`: expected an array of numbers".to_string(),
+            })?)
+        }
+    };
+    Ok(RunFacts {
+        controller,
+        set_point,
+    })
+}
+
+/// Whether `record` is a log of `softcbf run` (it has the bus timing columns).
+fn is_hardware_log(record: &Record) -> bool {
+    let extra = record.columns().extra_names();
+    extra
+        .iter()
+        .any(|name| name == "read [us]" || name == "read_us")
+}
+
+/// The controller of a hardware log from its `status` column (1–3: the QP ran).
+fn controller_from_status(record: &Record) -> Option<&'static str> {
+    let index = record.columns().index_of("status")?;
+    let mut any = false;
+    for status in record.column(index) {
+        if (1.0..=3.0).contains(&status) {
+            return Some("filter");
+        }
+        any |= status == 0.0;
+    }
+    any.then_some("pd")
+}
+
+/// The column title of `file`: its controller (from `summary.json`, or for a hardware log
+/// from its `status` column), with `, hardware` for a log of `softcbf run`; else the file
+/// name.
+fn title_for(file: &Path, record: &Record, facts: &RunFacts) -> String {
+    let controller = facts
+        .controller
+        .clone()
+        .or_else(|| controller_from_status(record).map(str::to_string));
+    let hardware = is_hardware_log(record);
+    match controller {
+        Some(controller) => {
+            let title = controller_title(&controller).to_string();
+            if hardware {
+                format!("{title}, hardware")
+            } else {
+                title
+            }
+        }
+        None => file.file_name().map_or_else(
+            || file.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        ),
+    }
+}
+
+/// Redraws the figures of the runs in `files` (one column each, left to right) into
+/// `out_dir` (default: the first file's directory) and returns the files written. Titles
+/// and the set point come from the `summary.json` beside each file when there is one
+/// (the set point from the first file's); with `model`, the barrier labels and their
+/// modules come from that robot instead of the files' headers (for logs written before
+/// the headers named them).
+pub fn replot(
+    files: &[PathBuf],
+    out_dir: Option<&Path>,
+    model: Option<&Model>,
+    options: &FigureOptions,
+) -> Result<Vec<PathBuf>, ReplotError> {
+    let first = files.first().ok_or(ReplotError::NoFiles)?;
+    let mut records = Vec::with_capacity(files.len());
+    let mut titles = Vec::with_capacity(files.len());
+    let mut set_point = None;
+    for file in files {
+        let mut record = Record::read_csv(file)?;
+        let facts = facts_for(file)?;
+        if let Some(model) = model {
+            apply_robot(file, &mut record, model)?;
+        }
+        if let Some(head) = records.first().map(Record::columns) {
+            for (what, expected, found) in [
+                ("coordinates", head.n(), record.columns().n()),
+                ("barriers", head.m(), record.columns().m()),
+            ] {
+                if expected != found {
+                    return Err(ReplotError::Mismatch {
+                        file: file.clone(),
+                        first: first.clone(),
+                        what,
+                        expected,
+                        found,
+                    });
+                }
+            }
+        }
+        if records.is_empty() {
+            set_point = facts.set_point.clone();
+        }
+        titles.push(title_for(file, &record, &facts));
+        records.push(record);
+    }
+    // Two columns of the same title: tell them apart by file.
+    for k in 0..titles.len() {
+        if titles.iter().filter(|t| **t == titles[k]).count() > 1 {
+            titles[k] = format!("{} ({})", titles[k], files[k].display());
+        }
+    }
+    let n = records[0].columns().n();
+    let set_point = set_point.filter(|s| s.len() == n).unwrap_or_default();
+    let per_module = model
+        .map(|model| barriers_per_module(model.generated.barrier_table(), model.n_modules()))
+        .unwrap_or_default();
+    let options = FigureOptions {
+        barriers_per_module: &per_module,
+        ..*options
+    };
+    let panels: Vec<(&str, &Record)> = titles.iter().map(String::as_str).zip(&records).collect();
+    let out_dir = match out_dir {
+        Some(dir) => dir.to_path_buf(),
+        None => first
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or_else(|| Path::new("."))
+            .to_path_buf(),
+    };
+    Ok(write_figures(&out_dir, &panels, &set_point, &options)?)
+}
+
+/// Names the columns of `record` (read from `file`) after `model`: its coordinates and
+/// barrier labels, the extra columns kept.
+fn apply_robot(file: &Path, record: &mut Record, model: &Model) -> Result<(), ReplotError> {
+    let columns = record.columns();
+    for (what, expected, found) in [
+        ("coordinates", model.nq(), columns.n()),
+        ("barriers", model.nb(), columns.m()),
+    ] {
+        if expected != found {
+            return Err(ReplotError::Robot {
+                file: file.to_path_buf(),
+                robot: model.robot.name.clone(),
+                what,
+                expected,
+                found,
+            });
+        }
+    }
+    let extra = columns.extra_names().to_vec();
+    let named = Columns::for_model(model, &as_strs(&extra))?;
+    record.relabel(named)?;
+    Ok(())
+}
