@@ -14,7 +14,7 @@ use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::{Overrides, ScenarioFile};
 use softcbf::settings::GainOptions;
-use softcbf::sim::{barriers_per_module, settings_report, simulate};
+use softcbf::sim::{settings_report, simulate};
 use softcbf_description::limits;
 
 #[derive(Parser)]
@@ -74,6 +74,9 @@ struct SimulateArgs {
     /// Output directory.
     #[arg(long, default_value = "out")]
     out: PathBuf,
+    /// Also write an animation of the run, `robot.gif` (about a second more).
+    #[arg(long)]
+    animate: bool,
     /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
     #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
     barrier_threshold: f64,
@@ -237,9 +240,8 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     } else {
         None
     };
-    let per_module = barriers_per_module(model.generated.barrier_table(), model.n_modules());
-    let written =
-        write_outputs(out, &main, comparison.as_ref(), &per_module).map_err(|e| e.to_string())?;
+    let written = write_outputs(out, &main, comparison.as_ref(), &model, args.animate)
+        .map_err(|e| e.to_string())?;
     console.say(&one_line(&main.summary));
     if let Some(pd) = &comparison {
         console.say(&one_line(&pd.summary));

@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 
 use serde_json::json;
 
+use crate::model::Model;
 use crate::plot::{FigureOptions, write_figures};
-use crate::sim::{Run, RunSummary};
+use crate::sim::{Run, RunSummary, barriers_per_module};
 
 /// Why outputs could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -34,15 +35,15 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {
 }
 
 /// Writes `trajectory.csv` (the main run), `trajectory_pd.csv` (the comparison, if any),
-/// `summary.json` and the figures `figure.png` / `figure.svg` into `out_dir` (created if
-/// needed); `barriers_per_module` splits the barriers for the figures
-/// ([`crate::sim::barriers_per_module`] of the model's barrier table). Returns the paths
-/// written.
+/// `summary.json` and the figures into `out_dir` (created if needed): `figure.png` /
+/// `figure.svg`, the 3-D view `robot.png` / `robot.svg` of `model`, and with `animate` the
+/// animation `robot.gif` ([`crate::plot::write_figures`]). Returns the paths written.
 pub fn write_outputs(
     out_dir: &Path,
     main: &Run,
     comparison: Option<&Run>,
-    barriers_per_module: &[usize],
+    model: &Model,
+    animate: bool,
 ) -> Result<Vec<PathBuf>, OutputError> {
     std::fs::create_dir_all(out_dir).map_err(io_error(out_dir))?;
     let mut written = Vec::new();
@@ -72,8 +73,11 @@ pub fn write_outputs(
     if let Some(pd) = comparison {
         panels.push((title(&pd.summary), &pd.record));
     }
+    let per_module = barriers_per_module(model.generated.barrier_table(), model.n_modules());
     let options = FigureOptions {
-        barriers_per_module,
+        barriers_per_module: &per_module,
+        model: Some(model),
+        animate,
         ..FigureOptions::default()
     };
     written.extend(write_figures(

@@ -35,6 +35,7 @@ mod style;
 use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, IntoFont, SVGBackend};
 use plotters::style::register_font;
 
+use crate::model::Model;
 use crate::record::Record;
 use series::Range;
 pub use series::{display_name, envelope, excursion, nice_ceil, settle_time, window};
@@ -142,7 +143,7 @@ pub enum Split {
 }
 
 /// How the figures are drawn, beyond the records and the set point.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Default)]
 pub struct FigureOptions<'a> {
     /// Time window `(start, end)` \[s\] (default: the records' whole time span).
     pub time_range: Option<(f64, f64)>,
@@ -152,6 +153,12 @@ pub struct FigureOptions<'a> {
     /// the model's table). Empty: from the barrier labels (`module K …`), else evenly over
     /// the `n/3` modules, else one module.
     pub barriers_per_module: &'a [usize],
+    /// The robot the records are of: with it, [`write_figures`] also draws the 3-D view
+    /// (`robot.png`, `robot.svg`; [`robot_view::draw_robot_views`]).
+    pub model: Option<&'a Model>,
+    /// Also write the animation `robot.gif` ([`robot_view::animate_robot`]; about a
+    /// second for the paper's run). Needs [`FigureOptions::model`].
+    pub animate: bool,
 }
 
 /// Registers the embedded fonts with plotters, once per process.
@@ -562,7 +569,9 @@ fn default_modules(n: usize, m: usize) -> Vec<usize> {
 }
 
 /// Writes every figure of a run into `out_dir` (created if missing) and returns the files:
-/// today `figure.png` and `figure.svg` ([`draw_figures`] with the stem `figure`). `panels`
+/// `figure.png` and `figure.svg` ([`draw_figures`] with the stem `figure`); with
+/// [`FigureOptions::model`], the 3-D view `robot.png`, `robot.svg` (and `robot.gif` when
+/// [`FigureOptions::animate`]) of the same runs. `panels`
 /// are the columns, left to right (a title and a record each, all with the same `n` and
 /// `m`); `set_point` has `n` values or none. This is the one function `softcbf simulate`,
 /// `softcbf run` and `softcbf plot` call, so that a new figure appears in all three.
@@ -572,7 +581,25 @@ pub fn write_figures(
     set_point: &[f64],
     options: &FigureOptions,
 ) -> Result<Vec<PathBuf>, PlotError> {
-    draw_figures(out_dir, "figure", panels, set_point, options)
+    let mut written = draw_figures(out_dir, "figure", panels, set_point, options)?;
+    if let Some(model) = options.model {
+        written.extend(robot_view::draw_robot_views(
+            out_dir,
+            "robot",
+            model,
+            panels,
+            &robot_view::ViewOptions::default(),
+        )?);
+        if options.animate {
+            written.push(robot_view::animate_robot(
+                &out_dir.join("robot.gif"),
+                model,
+                panels,
+                &robot_view::AnimationOptions::default(),
+            )?);
+        }
+    }
+    Ok(written)
 }
 
 /// Draws `<stem>.png` and `<stem>.svg` in `out_dir` (created if missing) and returns their

@@ -93,6 +93,10 @@ pub struct PlotArgs {
     /// motion settles), `off`, or a time in seconds.
     #[arg(long, default_value = "auto", value_name = "auto|off|SECONDS")]
     pub split: String,
+    /// Also write the animation `robot.gif` (needs the robot: --robot or the run's
+    /// summary.json).
+    #[arg(long)]
+    pub animate: bool,
 }
 
 /// `softcbf plot`: reads the files, draws the figures, says what it wrote.
@@ -104,11 +108,19 @@ pub fn plot(args: PlotArgs, console: &mut Console) -> Result<u8, String> {
             let robot = crate::cli::load_robot(Some(path)).map_err(|e| e.to_string())?;
             Some(Model::new(robot).map_err(|e| e.to_string())?)
         }
-        None => None,
+        None => robot_of_run(&args.files),
     };
+    if model.is_none() && args.animate {
+        return Err(
+            "--animate: the robot of these files is not known (no summary.json naming a \
+             robot file that can be read beside them); give it with --robot FILE"
+                .into(),
+        );
+    }
     let options = FigureOptions {
         time_range,
         split,
+        animate: args.animate,
         ..FigureOptions::default()
     };
     let written = replot(&args.files, args.out.as_deref(), model.as_ref(), &options)
@@ -119,6 +131,32 @@ pub fn plot(args: PlotArgs, console: &mut Console) -> Result<u8, String> {
         return Err(error.to_string());
     }
     Ok(crate::exit::OK)
+}
+
+/// The model of the robot named in the `summary.json` beside the first of `files`, if
+/// that file can still be read; otherwise `None` and a note on standard error (the
+/// figures are drawn, the 3-D view is not).
+fn robot_of_run(files: &[PathBuf]) -> Option<Model> {
+    let facts = facts_for(files.first()?).ok()?;
+    let file = facts.robot_file?;
+    let robot = if file.starts_with("<embedded") {
+        crate::cli::load_robot(None)
+    } else {
+        crate::cli::load_robot(Some(Path::new(&file)))
+    };
+    match robot
+        .map_err(|e| e.to_string())
+        .and_then(|robot| Model::new(robot).map_err(|e| e.to_string()))
+    {
+        Ok(model) => Some(model),
+        Err(error) => {
+            eprintln!(
+                "note: no 3-D view: the run's robot file cannot be used ({error}); give it \
+                 with --robot FILE"
+            );
+            None
+        }
+    }
 }
 
 /// `START,END` \[s\] of `--t-range`.
@@ -163,6 +201,8 @@ pub fn parse_split(text: &str) -> Result<Split, String> {
 struct RunFacts {
     controller: Option<String>,
     set_point: Option<Vec<f64>>,
+    /// The robot file the run used (`settings.robot.file`).
+    robot_file: Option<String>,
 }
 
 /// Reads `summary.json` beside `file`, if there is one, and picks the part about `file`:
@@ -216,9 +256,14 @@ fn facts_for(file: &Path) -> Result<RunFacts, ReplotError> {
             })?)
         }
     };
+    let robot_file = summary
+        .pointer("/settings/robot/file")
+        .and_then(Value::as_str)
+        .map(str::to_string);
     Ok(RunFacts {
         controller,
         set_point,
+        robot_file,
     })
 }
 
@@ -325,6 +370,7 @@ pub fn replot(
         .unwrap_or_default();
     let options = FigureOptions {
         barriers_per_module: &per_module,
+        model,
         ..*options
     };
     let panels: Vec<(&str, &Record)> = titles.iter().map(String::as_str).zip(&records).collect();

@@ -15,6 +15,7 @@
 //! `summary.json` records both ([`SettingsReport`]).
 
 use std::fmt;
+use std::path::Path;
 
 use serde::Serialize;
 use softcbf_description::gains::{GainForm, scaled_identity, written_form};
@@ -267,6 +268,18 @@ pub struct SettingsReport {
     pub reference: Sourced<String>,
     /// Integrator tolerances (simulation only).
     pub integrator: Option<IntegratorReport>,
+}
+
+/// How a settings report names a file: its absolute path, so that a later `softcbf plot`
+/// from another folder finds it; a built-in file (`<embedded …>`) by that name.
+pub fn file_name(path: &Path) -> String {
+    if path.to_string_lossy().starts_with('<') {
+        return path.display().to_string();
+    }
+    std::path::absolute(path)
+        .unwrap_or_else(|_| path.to_path_buf())
+        .display()
+        .to_string()
 }
 
 /// `softcbf <version>`.

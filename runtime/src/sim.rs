@@ -6,6 +6,7 @@
 //! integration ends the run early; the record and summary keep what happened up to it and
 //! [`RunSummary::stopped`] says why. Nothing allocates inside the loop.
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
@@ -20,7 +21,7 @@ use crate::reference::ReferenceSignal;
 use crate::reference::ReferenceSpec;
 use crate::scenario::Scenario;
 use crate::settings::{
-    Described, IntegratorReport, SettingsReport, Source, Sourced, software, vector_text,
+    Described, IntegratorReport, SettingsReport, Source, Sourced, file_name, software, vector_text,
 };
 
 /// Why a run could not start.
@@ -202,11 +203,11 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
         software: software(),
         robot: Described {
             name: robot.name.clone(),
-            file: robot.source.display().to_string(),
+            file: file_name(&robot.source),
         },
         scenario: Some(Described {
             name: scenario.name.clone(),
-            file: scenario.file.clone(),
+            file: file_name(Path::new(&scenario.file)),
         }),
         filter: Sourced::new(filter, filter_source),
         gains: sources.gains.report(model.nq()),

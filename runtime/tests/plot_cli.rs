@@ -47,7 +47,8 @@ fn figures_come_back_from_the_csvs() {
         out.to_str().unwrap(),
     ]);
     assert!(run.status.success(), "{}", text(&run.stderr));
-    let figures = [out.join("figure.png"), out.join("figure.svg")];
+    // The figures and the 3-D view, whose robot `plot` finds in summary.json.
+    let figures = ["figure.png", "figure.svg", "robot.png", "robot.svg"].map(|f| out.join(f));
     let drawn: Vec<Vec<u8>> = figures.iter().map(|f| std::fs::read(f).unwrap()).collect();
     for figure in &figures {
         std::fs::remove_file(figure).unwrap();
@@ -56,9 +57,10 @@ fn figures_come_back_from_the_csvs() {
     let csv_pd = out.join("trajectory_pd.csv");
     let plot = softcbf(&["plot", csv.to_str().unwrap(), csv_pd.to_str().unwrap()]);
     assert!(plot.status.success(), "{}", text(&plot.stderr));
+    let names: Vec<String> = figures.iter().map(|f| f.display().to_string()).collect();
     assert_eq!(
         text(&plot.stdout).trim(),
-        format!("wrote {}, {}", figures[0].display(), figures[1].display())
+        format!("wrote {}", names.join(", "))
     );
     for (figure, bytes) in figures.iter().zip(&drawn) {
         assert!(

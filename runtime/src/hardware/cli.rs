@@ -22,8 +22,8 @@ use crate::model::Model;
 use crate::output::Console;
 use crate::protocol::Bus;
 use crate::settings::{
-    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, resolve_gains,
-    software, vector_text,
+    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, file_name,
+    resolve_gains, software, vector_text,
 };
 
 /// Options of `softcbf emulate`.
@@ -409,7 +409,7 @@ pub fn run_settings_report(
         software: software(),
         robot: Described {
             name: robot.name.clone(),
-            file: robot.source.display().to_string(),
+            file: file_name(&robot.source),
         },
         scenario: None,
         filter: Sourced::new(settings.filter, given(args.no_filter)),

@@ -116,6 +116,7 @@ pub fn finish(
     let per_module = barriers_per_module(model.generated.barrier_table(), model.n_modules());
     let options = FigureOptions {
         barriers_per_module: &per_module,
+        model: Some(model),
         ..FigureOptions::default()
     };
     files.extend(
