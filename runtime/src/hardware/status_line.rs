@@ -167,7 +167,7 @@ mod tests {
 
     #[test]
     fn the_columns_read_are_the_status_and_the_attempts() {
-        let names = extra_columns(6, 6);
+        let names = extra_columns(6, &crate::record::coordinate_names(6));
         assert!(names[STATUS].starts_with("status"), "{}", names[STATUS]);
         assert!(
             names[ATTEMPTS].starts_with("attempts"),
