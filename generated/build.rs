@@ -13,50 +13,10 @@
 //! workspace build), and tests use hex_1 and hex_4.
 
 use std::collections::HashSet;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use softcbf_codegen::registry::{self, REGISTRY_FILE, REMOVE_COMMAND};
 use softcbf_description::robot::{Robot, Routing, Structure};
-
-/// Rust's keywords (strict, reserved and weak ones that cannot name a module).
-const KEYWORDS: &[&str] = &[
-    "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum", "extern",
-    "false", "fn", "for", "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub",
-    "ref", "return", "self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use",
-    "where", "while", "abstract", "become", "box", "do", "final", "gen", "macro", "override",
-    "priv", "try", "typeof", "unsized", "virtual", "yield",
-];
-
-/// A module name for the model of `path`, unique among `taken` (and recorded there): the
-/// file stem in lower case with `_` for other characters, `m` before a leading digit or
-/// `_`, `_robot` after a keyword, `_2`, `_3`, … when taken.
-fn module_name(path: &Path, taken: &mut HashSet<String>) -> String {
-    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("robot");
-    let mut name: String = stem
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() {
-                c.to_ascii_lowercase()
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit() || c == '_') {
-        name.insert(0, 'm');
-    }
-    if KEYWORDS.contains(&name.as_str()) {
-        name.push_str("_robot");
-    }
-    let mut unique = name.clone();
-    let mut k = 2;
-    while taken.contains(&unique) {
-        unique = format!("{name}_{k}");
-        k += 1;
-    }
-    taken.insert(unique.clone());
-    unique
-}
 
 /// Ends the build script with `message` on standard error (cargo shows it under
 /// `--- stderr`), without a panic's backtrace noise.
@@ -141,7 +101,7 @@ fn main() {
                     "{label:?}: a robot file's path cannot hold a line break ({context})"
                 ));
             }
-            models.push((module_name(path, &mut taken), label, structure));
+            models.push((registry::model_name(path, &mut taken), label, structure));
         }
     }
     for (name, structure) in registry::benchmarks() {

@@ -128,8 +128,13 @@ fn generate_file(args: GenerateArgs) -> Result<(), String> {
     let robot = Robot::load(&robot_path).map_err(|e| e.to_string())?;
     let start = Instant::now();
     let source = generate(&robot.structure(), &robot_path.display().to_string());
-    std::fs::write(&out_path, &source.text)
-        .map_err(|error| format!("cannot write {}: {error}", out_path.display()))?;
+    let write = |path: &Path| -> std::io::Result<()> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)?;
+        }
+        std::fs::write(path, &source.text)
+    };
+    write(&out_path).map_err(|error| format!("cannot write {}: {error}", out_path.display()))?;
     let total: usize = source.ops.iter().map(|(_, c)| c.total()).sum();
     eprintln!(
         "wrote {} ({} modules, {} lines, {} operations) in {:.2} s",

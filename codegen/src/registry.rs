@@ -147,6 +147,47 @@ pub fn benchmarks() -> Vec<(String, Structure)> {
         .collect()
 }
 
+/// Rust's keywords (strict, reserved and weak ones that cannot name a module).
+const KEYWORDS: &[&str] = &[
+    "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum", "extern",
+    "false", "fn", "for", "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub",
+    "ref", "return", "self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use",
+    "where", "while", "abstract", "become", "box", "do", "final", "gen", "macro", "override",
+    "priv", "try", "typeof", "unsized", "virtual", "yield",
+];
+
+/// The name of the generated module for the model of robot file `path`, unique among
+/// `taken` (and added to it): the file stem in lower case with `_` for any other
+/// character, `m` before a leading digit or `_`, `_robot` after a Rust keyword, `_2`,
+/// `_3`, … when taken (`paper-sim.toml` is `paper_sim`).
+pub fn model_name(path: &Path, taken: &mut std::collections::HashSet<String>) -> String {
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("robot");
+    let mut name: String = stem
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit() || c == '_') {
+        name.insert(0, 'm');
+    }
+    if KEYWORDS.contains(&name.as_str()) {
+        name.push_str("_robot");
+    }
+    let mut unique = name.clone();
+    let mut k = 2;
+    while taken.contains(&unique) {
+        unique = format!("{name}_{k}");
+        k += 1;
+    }
+    taken.insert(unique.clone());
+    unique
+}
+
 /// A structure in words: `2 modules, corners [5, 5], tendons [3, 3], local routing`.
 pub fn describe(structure: &Structure) -> String {
     let routing = match structure.routing {
@@ -460,6 +501,36 @@ mod tests {
             "# mine\n/b/y.toml\n"
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn model_names_are_unique_rust_identifiers() {
+        let mut taken: std::collections::HashSet<String> =
+            benchmarks().into_iter().map(|(name, _)| name).collect();
+        let names: Vec<String> = [
+            "robots/paper-sim.toml",
+            "/a/Paper Sim.toml",
+            "/b/2-modules.toml",
+            "/c/type.toml",
+            "/d/_x.toml",
+            "/e/hex-4.toml",
+            "/f/ünïcode.toml",
+        ]
+        .iter()
+        .map(|p| model_name(Path::new(p), &mut taken))
+        .collect();
+        assert_eq!(
+            names,
+            [
+                "paper_sim",
+                "paper_sim_2",
+                "m2_modules",
+                "type_robot",
+                "m_x",
+                "hex_4_2",
+                "m_n_code"
+            ]
+        );
     }
 
     #[test]

@@ -19,12 +19,11 @@ pub enum ModelError {
          cargo run --release -p softcbf-codegen -- add {register}\n\
          and every later build generates its model (an installed softcbf: then run \
          `cargo install --path runtime` again); this build has: {available}",
-        source = source_file
+        source = source_file,
+        register = shell_word(std::path::Path::new(.source_file))
     )]
     NoGeneratedModel {
         source_file: String,
-        /// The file as one shell word of the command that registers it (absolute).
-        register: String,
         modules: usize,
         corners: Vec<usize>,
         tendons: Vec<usize>,
@@ -86,7 +85,6 @@ impl Model {
                 .collect();
             return Err(ModelError::NoGeneratedModel {
                 source_file: robot.source.display().to_string(),
-                register: shell_word(&robot.source),
                 modules: structure.modules(),
                 corners: structure.corners,
                 tendons: structure.tendons,

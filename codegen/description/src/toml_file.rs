@@ -256,10 +256,9 @@ pub fn line_column(text: &str, at: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// The message of a TOML error in terms of the field being written where it lies
-/// (``field `module[1].margin`: `0.005 0.1` is not a number; …``, the field worked out
-/// from the text by [`scan`]): what is wrong and how to write it. A duplicate key also
-/// names the line of its first definition.
+/// The message of a TOML error in terms of the field being written where it lies, worked
+/// out from the text (``field `module[1].margin`: `0.005 0.1` is not a number; …``): what
+/// is wrong and how to write it. A duplicate key also names the line of its first definition.
 pub fn describe_toml(text: &str, error: &toml::de::Error) -> String {
     let message = error.message();
     let Some(span) = error.span() else {
