@@ -1,6 +1,11 @@
-//! Generates one model per robot structure found in the workspace's `robots/` directory
-//! (plus `SOFTCBF_ROBOTS`, a `:`-separated list of extra robot files, and the benchmark
-//! structures `hex_1`, `hex_4`, `hex_8`), and a registry that finds them by structure.
+//! Generates one model per robot structure the checkout names: every `robots/*.toml`, the
+//! files registered in `robots/local.list` (`softcbf-codegen add FILE`), `SOFTCBF_ROBOTS` (a
+//! `:`-separated list of extra files, for one build), and the benchmark structures `hex_1`,
+//! `hex_4`, `hex_8`; and a registry that finds them by structure.
+//!
+//! A registered file that is gone or does not read fails the build, naming the registry line
+//! and the command that unregisters it: building on without it would only move the error to
+//! `softcbf`'s "no generated model", far from its cause.
 //!
 //! The benchmark structures are always built, not put behind a feature: generating all of
 //! them takes < 0.5 s and compiling hex_4 and hex_8 adds ≈ 0.5–1 s and ≈ 1.5–2.5 s to a
@@ -8,26 +13,16 @@
 //! workspace build), and tests use hex_1 and hex_4.
 
 use std::collections::HashSet;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+use softcbf_codegen::registry::{self, REGISTRY_FILE, REMOVE_COMMAND};
 use softcbf_description::robot::{Robot, Routing, Structure};
 
-fn module_name(path: &Path) -> String {
-    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("robot");
-    let mut name: String = stem
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() {
-                c.to_ascii_lowercase()
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if name.starts_with(|c: char| c.is_ascii_digit()) {
-        name.insert(0, 'm');
-    }
-    name
+/// Ends the build script with `message` on standard error (cargo shows it under
+/// `--- stderr`), without a panic's backtrace noise.
+fn fail(message: &str) -> ! {
+    eprintln!("\nerror: {message}\n");
+    std::process::exit(1)
 }
 
 fn main() {
@@ -39,50 +34,61 @@ fn main() {
         .to_path_buf();
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let robots_dir = root.join("robots");
+    let registry_file = robots_dir.join(REGISTRY_FILE);
+    // The directory catches a new robot file and the registry's creation; a path that does
+    // not exist must not be named (cargo would rerun this script on every build).
     println!("cargo:rerun-if-changed={}", robots_dir.display());
+    if registry_file.exists() {
+        println!("cargo:rerun-if-changed={}", registry_file.display());
+    }
     println!(
         "cargo:rerun-if-changed={}",
         root.join("codegen/src").display()
     );
     println!("cargo:rerun-if-env-changed=SOFTCBF_ROBOTS");
 
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&robots_dir)
-        .map(|entries| {
-            entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-                .collect()
+    // (file, where it was named, for errors)
+    let mut files: Vec<(PathBuf, String)> = registry::shipped(&robots_dir)
+        .into_iter()
+        .map(|p| {
+            (
+                p,
+                format!(
+                    "robot files in {} are compiled into every build",
+                    robots_dir.display()
+                ),
+            )
         })
-        .unwrap_or_default();
-    // Sorted, with the paper's robot first: a structure's model is named after the first
-    // file that has it, and the paper's structure must stay `paper_sim` whatever other
-    // files share it (e.g. hardware-example.toml).
-    files.sort_by_key(|p| {
-        (
-            p.file_name().is_none_or(|n| n != "paper-sim.toml"),
-            p.clone(),
-        )
-    });
-    if let Ok(extra) = std::env::var("SOFTCBF_ROBOTS") {
-        files.extend(
-            extra
-                .split(':')
-                .filter(|s| !s.is_empty())
-                .map(PathBuf::from),
+        .collect();
+    let registered = registry::read(&registry_file).unwrap_or_else(|e| fail(&e.to_string()));
+    for entry in registered {
+        let context = format!(
+            "{}:{}: this robot file is registered for every build of this checkout; fix it, or \
+             unregister it with\n  {REMOVE_COMMAND} {}",
+            registry_file.display(),
+            entry.line,
+            registry::shell_word(&entry.path)
         );
+        files.push((entry.path, context));
+    }
+    if let Ok(extra) = std::env::var("SOFTCBF_ROBOTS") {
+        for path in extra.split(':').filter(|s| !s.is_empty()) {
+            files.push((
+                PathBuf::from(path),
+                "this robot file is listed in SOFTCBF_ROBOTS".to_string(),
+            ));
+        }
     }
 
     let mut models: Vec<(String, String, Structure)> = Vec::new();
     let mut seen = HashSet::new();
-    for path in &files {
-        println!("cargo:rerun-if-changed={}", path.display());
+    let mut taken: HashSet<String> = registry::benchmarks().into_iter().map(|(n, _)| n).collect();
+    for (path, context) in &files {
         let robot = match Robot::load(path) {
             Ok(robot) => robot,
-            Err(error) => panic!(
-                "\n\nerror: {error}\n(robot files in {} are compiled into the model)\n",
-                robots_dir.display()
-            ),
+            Err(error) => fail(&format!("{error}\n({context})")),
         };
+        println!("cargo:rerun-if-changed={}", path.display());
         let structure = robot.structure();
         if seen.insert(structure.clone()) {
             let label = path
@@ -90,19 +96,19 @@ fn main() {
                 .unwrap_or(path)
                 .display()
                 .to_string();
-            models.push((module_name(path), label, structure));
+            if label.contains(['\n', '\r']) {
+                fail(&format!(
+                    "{label:?}: a robot file's path cannot hold a line break ({context})"
+                ));
+            }
+            models.push((registry::model_name(path, &mut taken), label, structure));
         }
     }
-    for n in [1usize, 4, 8] {
-        let structure = Structure {
-            corners: vec![6; n],
-            tendons: vec![3; n],
-            routing: Routing::Local,
-        };
+    for (name, structure) in registry::benchmarks() {
         if seen.insert(structure.clone()) {
             models.push((
-                format!("hex_{n}"),
-                format!("the benchmark structure hex_{n}"),
+                name.clone(),
+                format!("the benchmark structure {name}"),
                 structure,
             ));
         }
@@ -118,8 +124,14 @@ fn main() {
             Routing::Local => "local",
             Routing::Through => "through",
         };
+        // The label is any path: written as string literals, and as code in the docs.
+        let doc = if label.starts_with("the benchmark") {
+            format!("Model of {label}.")
+        } else {
+            format!("Model generated from `{}`.", label.replace('`', "'"))
+        };
         registry.push_str(&format!(
-            "/// Model generated from {label}.\n#[allow(clippy::all, clippy::pedantic, unused)]\npub mod {name} {{\n    include!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// The generated source compiled above (unused constants cost nothing in a binary).\n    pub const SOURCE: &str = include_str!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// This model behind the [`crate::GeneratedModel`] interface.\n    pub struct Model;\n    crate::impl_generated_model!(Model, \"{name}\", \"{label}\", \"{routing}\");\n}}\n"
+            "#[doc = {doc:?}]\n#[allow(clippy::all, clippy::pedantic, unused)]\npub mod {name} {{\n    include!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// The generated source compiled above (unused constants cost nothing in a binary).\n    pub const SOURCE: &str = include_str!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// This model behind the [`crate::GeneratedModel`] interface.\n    pub struct Model;\n    crate::impl_generated_model!(Model, \"{name}\", {label:?}, \"{routing}\");\n}}\n"
         ));
         entries.push(format!("&{name}::Model"));
     }

@@ -24,6 +24,7 @@ pub mod emit;
 pub mod expr;
 pub mod model;
 pub mod program;
+pub mod registry;
 pub mod sexpr;
 
 pub use model::{GeneratedSource, generate};

@@ -15,9 +15,12 @@ pub enum ModelError {
     /// No model was generated for this structure.
     #[error(
         "{source}: no generated model for {modules} modules with corners {corners:?} and tendons {tendons:?} \
-         ({routing}); add the robot file to robots/ (or list it in SOFTCBF_ROBOTS) and rebuild; \
-         this build has: {available}",
-        source = source_file
+         ({routing}); register the robot file once, from the checkout:\n  \
+         cargo run --release -p softcbf-codegen -- add {register}\n\
+         and every later build generates its model (an installed softcbf: then run \
+         `cargo install --path runtime` again); this build has: {available}",
+        source = source_file,
+        register = shell_word(std::path::Path::new(.source_file))
     )]
     NoGeneratedModel {
         source_file: String,
@@ -27,6 +30,22 @@ pub enum ModelError {
         routing: &'static str,
         available: String,
     },
+}
+
+/// `path`, absolute, as one shell word of a command printed to be copied: as it is when
+/// it has only letters, digits and `/._-+,:=@%`, else in single quotes.
+fn shell_word(path: &std::path::Path) -> String {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let text = absolute.to_string_lossy();
+    if !text.is_empty()
+        && text
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "/._-+,:=@%".contains(c))
+    {
+        text.into_owned()
+    } else {
+        format!("'{}'", text.replace('\'', "'\\''"))
+    }
 }
 
 /// A robot ready for computation.

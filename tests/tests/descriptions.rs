@@ -752,3 +752,38 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn scenario_syntax_errors_name_the_field_like_robot_files() {
+    // Scenario files go through the same reader: a TOML syntax error names the field being
+    // written, its table, and how to write it.
+    let path = Path::new("scenarios/x.toml");
+    let cases = [
+        (
+            "duration = 10 s\n",
+            "scenarios/x.toml:1:12: field `duration`: `10 s` is not a value; write text in \
+             quotes (\"10 s\"), numbers as digits (0.1, 2e-3), true or false, or a list [a, b]",
+        ),
+        (
+            "[reference]\nset_point = [0.08 0.0, -0.05, 0.0, -0.06, -0.07]\n",
+            "scenarios/x.toml:2:14: field `reference.set_point`, entry 1: `0.08 0.0` is not one \
+             value; separate the entries of a list with commas: 0.08, 0.0",
+        ),
+        (
+            "[gains]\nkp = 5 5 5 5 5 5\n",
+            "scenarios/x.toml:2:6: field `gains.kp`: `5 5 5 5 5 5` is not a number; write one \
+             number, or a list as [5, 5, 5, 5, 5, 5]",
+        ),
+        (
+            "[reference]\nwaypoints = [{ t = 0.0, q = [0, 0, 0, 0, 0, 0] },\n  { t = 2.0, q = [0, 0 0] }]\n",
+            "scenarios/x.toml:3:22: field `reference.waypoints[2].q`, entry 2: `0 0` is not one \
+             value; separate the entries of a list with commas: 0, 0",
+        ),
+    ];
+    for (text, expected) in cases {
+        match ScenarioFile::parse(text, path) {
+            Ok(_) => panic!("accepted: {text}"),
+            Err(error) => assert_eq!(error.to_string(), expected, "{text}"),
+        }
+    }
+}

@@ -1063,3 +1063,26 @@ fn injected_faults_follow_their_seed_and_their_probabilities() {
         }
     }
 }
+
+#[test]
+fn a_silent_servo_counts_from_the_first_packet_received() {
+    // `--silent-after 1`: one second after the first packet, not after the emulator's start,
+    // so a `run` started later than the emulator still gets its safe start.
+    let mut settings = EmulatorSettings::new(BAUD);
+    settings.faults = Faults {
+        silent_servo: Some(2),
+        silent_after: Duration::from_secs(1),
+        ..Faults::default()
+    };
+    let mut bus = Bench::with(settings);
+    let ping = |id| packet(|o| encode_ping(id, o));
+    assert!(bus.wait(Duration::from_secs(10)).is_empty());
+    assert_eq!(bus.send(&ping(2)).len(), 1, "10 s after the start: answers");
+    // `send` waits 5 ms after each packet: the next ping goes 905 ms after the first.
+    bus.wait(Duration::from_millis(900));
+    assert_eq!(bus.send(&ping(2)).len(), 1, "0.9 s after the first packet");
+    bus.wait(Duration::from_millis(100));
+    assert!(bus.send(&ping(2)).is_empty(), "1.01 s after: silent");
+    assert_eq!(bus.send(&ping(1)).len(), 1, "the other servos answer");
+    assert_eq!(bus.device.log().fates[ReplyFate::Silent as usize], 1);
+}

@@ -1009,8 +1009,18 @@ mod tests {
             "a number [m] or an array of numbers, one per corner",
         );
         assert_syntax("[[module]]\nmass = 0.1\nmass = 0.2", 3, 1, "duplicate key");
-        assert_syntax("[[module]\n", 1, 10, "unclosed array table");
-        assert_syntax("é = [", 1, 6, "unclosed array");
+        assert_syntax(
+            "[[module]\n",
+            1,
+            10,
+            "field `module[1]`: the table header `[[module]` is not closed",
+        );
+        assert_syntax(
+            "é = [",
+            1,
+            6,
+            "field `é`, entry 1: the list opened on line 1 is not closed",
+        );
     }
 
     /// Mutations of the shipped files: every prefix, every line removed or doubled, and

@@ -223,9 +223,17 @@ impl<'a> Checker<'a> {
     pub fn deserialize<T: Deserialize<'a>>(&self) -> Result<T, FileError> {
         let document = toml::Deserializer::parse(self.text).map_err(|error| self.syntax(&error))?;
         serde_path_to_error::deserialize(document).map_err(|error| {
-            let place = place(error.path());
             let inner = error.inner();
-            let message = plain_words(inner.message());
+            // A missing field is named as the field it would be, in the table that lacks it.
+            let missing = inner
+                .message()
+                .strip_prefix("missing field `")
+                .and_then(|m| m.strip_suffix('`'));
+            let place = place(error.path(), missing);
+            let message = match missing {
+                Some(_) => format!("missing; {} must give it", table_words(error.path())),
+                None => plain_words(inner.message()),
+            };
             let message = if place.is_empty() {
                 message
             } else {
@@ -248,23 +256,419 @@ pub fn line_column(text: &str, at: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// The message of a TOML error: for a duplicate key, the key, its field and the line
-/// where it was first given; otherwise TOML's own message.
+/// The message of a TOML error in terms of the field being written where it lies, worked
+/// out from the text (``field `module[1].margin`: `0.005 0.1` is not a number; …``): what
+/// is wrong and how to write it. A duplicate key also names the line of its first definition.
 pub fn describe_toml(text: &str, error: &toml::de::Error) -> String {
     let message = error.message();
-    match error.span() {
-        Some(span) if message.starts_with("duplicate key") => duplicate(text, &span),
-        _ => message.to_string(),
+    let Some(span) = error.span() else {
+        return message.to_string();
+    };
+    if message.starts_with("duplicate key") {
+        return duplicate(text, &span);
+    }
+    let scan = scan(text, span.start);
+    let written = text.get(span.clone()).unwrap_or("").trim();
+    let line_of = |at: usize| line_column(text, at).0;
+    let in_list = matches!(scan.frames.last(), Some(Frame::Array { .. }));
+    let what = if message.starts_with("string values must be quoted") {
+        unquoted(text, span.start, written, in_list)
+    } else if message.starts_with("unexpected key or value") {
+        let rest = rest_of_line(text, span.start);
+        format!(
+            "`{rest}` follows the value; write one `key = value` a line (a comment starts \
+             with `#`)"
+        )
+    } else if message.starts_with("key with no value") {
+        let line = rest_of_line(text, line_start(text, span.start));
+        format!("`{line}` has no `=`; write `key = value`")
+    } else if let Some(at) = scan.string {
+        format!(
+            "the text opened on line {} is not closed: end it with its quote on the same line \
+             (text over several lines goes between \"\"\" and \"\"\")",
+            line_of(at)
+        )
+    } else if let Some(at) = scan.header {
+        format!(
+            "the table header `{}` is not closed: write it as `[name]` or `[[name]]`",
+            rest_of_line(text, at)
+        )
+    } else if message.starts_with("unclosed") {
+        match scan.frames.last() {
+            Some(Frame::Array { at, .. }) => format!(
+                "the list opened on line {} is not closed: end it with `]`",
+                line_of(*at)
+            ),
+            Some(Frame::Inline { at, .. }) => format!(
+                "the inline table opened on line {} is not closed: end it with `}}` on the \
+                 same line",
+                line_of(*at)
+            ),
+            None => message.to_string(),
+        }
+    } else {
+        match scan.value {
+            Some(at) if !in_list && !rest_of_line(text, at).is_empty() => {
+                format!("`{}`: {message}", rest_of_line(text, at))
+            }
+            _ => message.to_string(),
+        }
+    };
+    let field = scan.field();
+    match (field.is_empty(), scan.entry()) {
+        (true, _) => what,
+        (false, None) => format!("field `{field}`: {what}"),
+        (false, Some(k)) => format!("field `{field}`, entry {k}: {what}"),
     }
 }
 
-/// Where a serde error lies, from its path: ``field `module[2].mass` ``,
-/// ``field `gravity`, entry 2``, ``field `gains.kd`, row 1 entry 2``. Arrays of tables
-/// count from 1; the private keys of `toml::Spanned` are left out.
-fn place(path: &serde_path_to_error::Path) -> String {
+/// What is wrong with a value TOML does not know, written at `at` (`written`, trimmed):
+/// nothing, several numbers without a list, or a word without quotes.
+fn unquoted(text: &str, at: usize, written: &str, in_list: bool) -> String {
+    if written.is_empty() {
+        let before = text.get(..at).unwrap_or("").trim_end();
+        return if before.ends_with('=') {
+            "no value after `=`; write a number, \"text\", true or false, or a list [a, b]"
+                .to_string()
+        } else {
+            "a value is missing here".to_string()
+        };
+    }
+    let words: Vec<&str> = written
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|w| !w.is_empty())
+        .collect();
+    let numbers = words.len() > 1
+        && words
+            .iter()
+            .all(|w| w.replace('_', "").parse::<f64>().is_ok());
+    if numbers && in_list {
+        format!(
+            "`{written}` is not one value; separate the entries of a list with commas: {}",
+            words.join(", ")
+        )
+    } else if numbers {
+        format!(
+            "`{written}` is not a number; write one number, or a list as [{}]",
+            words.join(", ")
+        )
+    } else {
+        format!(
+            "`{written}` is not a value; write text in quotes (\"{}\"), numbers as digits \
+             (0.1, 2e-3), true or false, or a list [a, b]",
+            written.replace(['"', '\\'], "")
+        )
+    }
+}
+
+/// The text from `at` to the end of its line, without a comment, trimmed.
+fn rest_of_line(text: &str, at: usize) -> &str {
+    let rest = text.get(at..).unwrap_or("");
+    let line = rest.split('\n').next().unwrap_or("");
+    line.split('#').next().unwrap_or("").trim()
+}
+
+/// The byte offset where the line of `at` starts.
+fn line_start(text: &str, at: usize) -> usize {
+    text.get(..at)
+        .and_then(|before| before.rfind('\n'))
+        .map_or(0, |p| p + 1)
+}
+
+// ---------------------------------------------------------------------------------------
+// Which field a position of a TOML text lies in, for files that do not parse.
+
+/// An open bracket or brace around a position.
+#[derive(Debug)]
+enum Frame {
+    /// `[ … ]`: the array's field, its current entry (from 1), where it opened.
+    Array {
+        path: String,
+        entry: usize,
+        at: usize,
+    },
+    /// `{ … }`: the inline table's field, the key being written in it, where it opened.
+    Inline {
+        path: String,
+        key: Option<String>,
+        at: usize,
+    },
+}
+
+/// What the text says up to a position: the table, the statement and the brackets it lies
+/// in. The parser gives a position only; this is read from the text with TOML's lexical
+/// rules (strings, comments, headers, dotted and quoted keys).
+#[derive(Debug, Default)]
+struct Scan {
+    /// The current table, arrays of tables with their 1-based index: `hardware.module[2]`.
+    table: String,
+    /// The key of the statement being written at top level of the table, if any.
+    key: Option<String>,
+    /// Where that statement's value starts.
+    value: Option<usize>,
+    /// The brackets and braces open at the position, outermost first.
+    frames: Vec<Frame>,
+    /// Where a string that never closes opened, if the position lies after its start.
+    string: Option<usize>,
+    /// Where a table header that never closes starts, if the position lies in it.
+    header: Option<usize>,
+}
+
+impl Scan {
+    /// The field at the position: `module[2].margin`; for an entry of an array, the array.
+    fn field(&self) -> String {
+        match self.frames.last() {
+            Some(Frame::Array { path, .. }) => path.clone(),
+            _ => self.path(),
+        }
+    }
+
+    /// The 1-based entry of the innermost array the position lies in.
+    fn entry(&self) -> Option<usize> {
+        match self.frames.last() {
+            Some(Frame::Array { entry, .. }) => Some(*entry),
+            _ => None,
+        }
+    }
+
+    /// The path of what is written at the position (inside an array: its current entry).
+    fn path(&self) -> String {
+        match self.frames.last() {
+            Some(Frame::Array { path, entry, .. }) => format!("{path}[{entry}]"),
+            Some(Frame::Inline { path, key, .. }) => match key {
+                Some(key) => join(path, key),
+                None => path.clone(),
+            },
+            None => match &self.key {
+                Some(key) => join(&self.table, key),
+                None => self.table.clone(),
+            },
+        }
+    }
+}
+
+fn join(a: &str, b: &str) -> String {
+    if a.is_empty() {
+        b.to_string()
+    } else {
+        format!("{a}.{b}")
+    }
+}
+
+/// The end (exclusive) of the string starting at `at` (a one-line or multi-line basic or
+/// literal string), or `None` if it never closes (a one-line string at its line's end).
+fn string_end(b: &[u8], at: usize) -> Option<usize> {
+    let quote = b[at];
+    let triple = b.get(at..at + 3) == Some(&[quote, quote, quote][..]);
+    let mut i = at + if triple { 3 } else { 1 };
+    while i < b.len() {
+        match b[i] {
+            b'\\' if quote == b'"' => i += 2,
+            b'\n' if !triple => return None,
+            c if c == quote => {
+                if !triple {
+                    return Some(i + 1);
+                }
+                if b.get(i..i + 3) == Some(&[quote, quote, quote][..]) {
+                    // Up to two more quotes belong to the text (`""""` ends with one in it).
+                    let mut end = i + 3;
+                    while end < b.len() && b[end] == quote && end < i + 5 {
+                        end += 1;
+                    }
+                    return Some(end);
+                }
+                i += 1;
+            }
+            _ => i += 1,
+        }
+    }
+    None
+}
+
+/// The first of `stops` from `at` on, outside strings (or the text's end).
+fn until(b: &[u8], mut at: usize, stops: &[u8]) -> usize {
+    while at < b.len() && !stops.contains(&b[at]) {
+        if b[at] == b'"' || b[at] == b'\'' {
+            match string_end(b, at) {
+                Some(end) => at = end,
+                None => return b.len(),
+            }
+        } else {
+            at += 1;
+        }
+    }
+    at
+}
+
+/// A written key (`a. "b c" .d`) as its dotted path (`a.b c.d`).
+fn key_path(written: &str) -> String {
+    let b = written.as_bytes();
+    let mut parts = Vec::new();
+    let mut start = 0;
+    loop {
+        let end = until(b, start, b".");
+        let part = written.get(start..end).unwrap_or("").trim();
+        let part = part
+            .strip_prefix('"')
+            .and_then(|p| p.strip_suffix('"'))
+            .or_else(|| part.strip_prefix('\'').and_then(|p| p.strip_suffix('\'')))
+            .unwrap_or(part);
+        parts.push(part.to_string());
+        if end >= b.len() {
+            break;
+        }
+        start = end + 1;
+    }
+    parts.join(".")
+}
+
+/// Reads `text` up to byte `at` (and the rest of a header or key line it falls in): the
+/// table, statement, brackets and strings open there.
+fn scan(text: &str, at: usize) -> Scan {
+    let b = text.as_bytes();
+    let end = at.min(b.len());
+    // Arrays of tables seen so far: their path (with the indices of enclosing arrays of
+    // tables) and how many elements.
+    let mut counts: std::collections::HashMap<String, usize> = Default::default();
+    let mut scan = Scan::default();
+    let mut statement_start = true;
+    let mut i = 0;
+    while i < end {
+        let c = b[i];
+        match c {
+            b'\n' => {
+                statement_start |= scan.frames.is_empty();
+                i += 1;
+            }
+            b' ' | b'\t' | b'\r' => i += 1,
+            b'#' => {
+                // A comment runs to the line's end, quotes and all.
+                i = b[i..]
+                    .iter()
+                    .position(|&c| c == b'\n')
+                    .map_or(b.len(), |k| i + k);
+            }
+            b'[' if statement_start && scan.frames.is_empty() => {
+                // A table header, `[a.b]` or `[[a.b]]`.
+                statement_start = false;
+                let double = b.get(i + 1) == Some(&b'[');
+                let inner = i + if double { 2 } else { 1 };
+                let close = until(b, inner, b"]\n");
+                let closed =
+                    b.get(close) == Some(&b']') && (!double || b.get(close + 1) == Some(&b']'));
+                let written = key_path(text.get(inner..close).unwrap_or(""));
+                // Enclosing arrays of tables resolve to their current element.
+                let mut path = String::new();
+                let parts: Vec<&str> = written.split('.').collect();
+                for (k, part) in parts.iter().enumerate() {
+                    path = join(&path, part);
+                    if k + 1 < parts.len()
+                        && let Some(n) = counts.get(&path)
+                    {
+                        path = format!("{path}[{n}]");
+                    }
+                }
+                if double {
+                    let n = counts.entry(path.clone()).or_insert(0);
+                    *n += 1;
+                    path = format!("{path}[{n}]");
+                }
+                scan.table = path;
+                scan.key = None;
+                scan.value = None;
+                if closed {
+                    i = close + if double { 2 } else { 1 };
+                } else {
+                    let line_end = until(b, close, b"\n");
+                    if end <= line_end {
+                        scan.header = Some(i);
+                    }
+                    i = close.max(i + 1);
+                }
+            }
+            _ if statement_start && scan.frames.is_empty() => {
+                // A key, up to its `=` (or, if the line has none, its first word).
+                statement_start = false;
+                let stop = until(b, i, b"=\n");
+                let written = text.get(i..stop).unwrap_or("");
+                if b.get(stop) == Some(&b'=') {
+                    scan.key = Some(key_path(written));
+                    scan.value = Some(stop + 1);
+                    i = stop + 1;
+                } else {
+                    let word = written.split_whitespace().next().unwrap_or("");
+                    scan.key = Some(key_path(word));
+                    scan.value = None;
+                    i = stop;
+                }
+            }
+            b'"' | b'\'' => match string_end(b, i) {
+                Some(close) => i = close,
+                None => {
+                    scan.string = Some(i);
+                    break;
+                }
+            },
+            b'[' => {
+                scan.frames.push(Frame::Array {
+                    path: scan.path(),
+                    entry: 1,
+                    at: i,
+                });
+                i += 1;
+            }
+            b'{' => {
+                scan.frames.push(Frame::Inline {
+                    path: scan.path(),
+                    key: None,
+                    at: i,
+                });
+                i += 1;
+            }
+            b']' | b'}' => {
+                scan.frames.pop();
+                i += 1;
+            }
+            b',' => {
+                match scan.frames.last_mut() {
+                    Some(Frame::Array { entry, .. }) => *entry += 1,
+                    Some(Frame::Inline { key, .. }) => *key = None,
+                    None => {}
+                }
+                i += 1;
+            }
+            _ => {
+                if let Some(Frame::Inline {
+                    key: key @ None, ..
+                }) = scan.frames.last_mut()
+                {
+                    let stop = until(b, i, b"=,}\n");
+                    if b.get(stop) == Some(&b'=') {
+                        *key = Some(key_path(text.get(i..stop).unwrap_or("")));
+                        i = stop + 1;
+                    } else {
+                        i = stop.max(i + 1);
+                    }
+                } else {
+                    i += 1;
+                }
+            }
+        }
+    }
+    scan
+}
+
+/// Where a serde error lies, from its path and the field it lacks, if that is the error:
+/// ``field `module[2].mass` ``, ``field `gravity`, entry 2``, ``field `gains.kd`, row 1
+/// entry 2``, ``field `hardware.module[2].servo_ids` ``. Arrays of tables count from 1; the
+/// private keys of `toml::Spanned` are left out.
+fn place(path: &serde_path_to_error::Path, missing: Option<&str>) -> String {
     let mut field = String::new();
     let mut entries: Vec<usize> = Vec::new();
-    for segment in path.iter() {
+    let missing = missing.map(|key| Segment::Map {
+        key: key.to_string(),
+    });
+    for segment in path.iter().chain(missing.as_ref()) {
         match segment {
             Segment::Map { key } if key.starts_with("$__serde_spanned_private") => {}
             Segment::Map { key } | Segment::Enum { variant: key } => {
@@ -292,6 +696,29 @@ fn place(path: &serde_path_to_error::Path) -> String {
             let path: Vec<String> = deeper.iter().map(|k| k.to_string()).collect();
             format!("field `{field}`, entry {}", path.join("."))
         }
+    }
+}
+
+/// The table a serde path ends in, as written in a file: `every [[hardware.module]]
+/// table`, `the [barrier] table`, `the file`.
+fn table_words(path: &serde_path_to_error::Path) -> String {
+    let mut keys = Vec::new();
+    let mut array = false;
+    for segment in path.iter() {
+        match segment {
+            Segment::Map { key } if key.starts_with("$__serde_spanned_private") => {}
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                keys.push(key.as_str());
+                array = false;
+            }
+            Segment::Seq { .. } => array = true,
+            Segment::Unknown => {}
+        }
+    }
+    match (keys.is_empty(), array) {
+        (true, _) => "the file".to_string(),
+        (false, true) => format!("every [[{}]] table", keys.join(".")),
+        (false, false) => format!("the [{}] table", keys.join(".")),
     }
 }
 
@@ -507,5 +934,79 @@ mod tests {
         // `c`, `é` (two bytes) precede byte 6: column 3.
         assert_eq!(line_column("ab\ncé d", 6), (2, 3));
         assert_eq!(line_column("ab", 100), (1, 3));
+    }
+
+    #[test]
+    fn syntax_errors_name_the_field_from_the_text() {
+        let cases = [
+            "[[module]]\n[[module]]\nmargin = 0.005 0.1\n",
+            "routing = local # a comment [x]\n",
+            "[[module]]\ncorner_angles_deg = [0, 60 120]\n",
+            "gravity = [0, 0,\n  -9.81\n",
+            "[[module]]\n[hardware\nbaud = 1\n",
+            "[[module]]\n[[module]]\nmass 0.1\n",
+            "[hardware]\n[[hardware.module]]\n[[hardware.module]]\nservo_ids = [1, 2, 3] x\n",
+            "name = \"abc\n",
+            "[barrier]\np1 = 1e\n",
+            "barrier.p1 = 1 2\n",
+            "module = [{mass = 0.1}, { mass = 1 2 }]\n",
+            "# [[module]] in a comment\nname = \"a = [\" # \"\n\"barrier\" . 'p2' = x\n",
+            "[[module]]\nmass =\n",
+            "[[a]]\n[[a.b]]\n[[a.b]]\n[[a]]\n[[a.b]]\nc = 1 2\n",
+            "[[module]]\nmargin = [0.01, 0.02,\n  0.03 0.04]\n",
+        ];
+        let expected = [
+            "robots/x.toml:3:10: field `module[2].margin`: `0.005 0.1` is not a number; write \
+             one number, or a list as [0.005, 0.1]",
+            "robots/x.toml:1:11: field `routing`: `local` is not a value; write text in quotes \
+             (\"local\"), numbers as digits (0.1, 2e-3), true or false, or a list [a, b]",
+            "robots/x.toml:2:25: field `module[1].corner_angles_deg`, entry 2: `60 120` is not \
+             one value; separate the entries of a list with commas: 60, 120",
+            "robots/x.toml:2:8: field `gravity`, entry 3: the list opened on line 1 is not \
+             closed: end it with `]`",
+            "robots/x.toml:2:10: field `hardware`: the table header `[hardware` is not closed: \
+             write it as `[name]` or `[[name]]`",
+            "robots/x.toml:3:6: field `module[2].mass`: `mass 0.1` has no `=`; write \
+             `key = value`",
+            "robots/x.toml:4:23: field `hardware.module[2].servo_ids`: `x` follows the value; \
+             write one `key = value` a line (a comment starts with `#`)",
+            "robots/x.toml:1:12: field `name`: the text opened on line 1 is not closed: end it \
+             with its quote on the same line (text over several lines goes between \"\"\" and \
+             \"\"\")",
+            "robots/x.toml:2:8: field `barrier.p1`: `1e`: invalid exponent, expected digits",
+            "robots/x.toml:1:14: field `barrier.p1`: `1 2` is not a number; write one number, \
+             or a list as [1, 2]",
+            "robots/x.toml:1:34: field `module[2].mass`: `1 2` is not a number; write one \
+             number, or a list as [1, 2]",
+            "robots/x.toml:3:20: field `barrier.p2`: `x` is not a value; write text in quotes \
+             (\"x\"), numbers as digits (0.1, 2e-3), true or false, or a list [a, b]",
+            "robots/x.toml:2:7: field `module[1].mass`: no value after `=`; write a number, \
+             \"text\", true or false, or a list [a, b]",
+            "robots/x.toml:6:5: field `a[2].b[1].c`: `1 2` is not a number; write one number, \
+             or a list as [1, 2]",
+            "robots/x.toml:3:3: field `module[1].margin`, entry 3: `0.03 0.04` is not one \
+             value; separate the entries of a list with commas: 0.03, 0.04",
+        ];
+        for (k, (text, expected)) in cases.iter().zip(expected).enumerate() {
+            assert_eq!(robot_error(text), expected, "case {k}: {text:?}");
+        }
+    }
+
+    #[test]
+    fn scanning_never_panics_on_any_prefix() {
+        // Every prefix of awkward text, cut inside strings, headers and multi-byte
+        // characters, is scanned and described without a panic.
+        let text =
+            "# é [\n[[a . \"b.c\"]]\nk = '''x\n'y''''\n\"q\\\"\" = [1, {z = \"}\"}, [2]]\n[é]\n";
+        for at in 0..=text.len() + 2 {
+            let _ = scan(text, at).field();
+        }
+        for cut in 0..=text.len() {
+            if let Some(prefix) = text.get(..cut)
+                && let Err(error) = toml::Deserializer::parse(prefix)
+            {
+                let _ = describe_toml(prefix, &error);
+            }
+        }
     }
 }

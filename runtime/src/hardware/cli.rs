@@ -54,7 +54,8 @@ pub struct EmulateArgs {
     /// ID of a servo that stops answering (it still obeys instructions).
     #[arg(long, allow_negative_numbers = true)]
     pub silent_servo: Option<i64>,
-    /// Seconds after the start when --silent-servo falls silent.
+    /// Seconds after the first packet received (not the emulator's start) when
+    /// --silent-servo falls silent.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub silent_after: f64,
     /// Seed of the fault draws.

@@ -848,4 +848,36 @@ mod tests {
             "{error}"
         );
     }
+    #[test]
+    fn a_missing_module_field_names_the_module() {
+        // Every required field of [[hardware.module]], left out of the second module: the
+        // error names the module and the field, at that table's header (line 12).
+        for field in [
+            "servo_ids",
+            "pulley_radius",
+            "zero_angle_deg",
+            "direction",
+            "actuator_gain",
+            "tension_limits",
+        ] {
+            let second: String = MODULE
+                .replace("[1, 2, 3]", "[4, 5, 6]")
+                .lines()
+                .filter(|line| !line.starts_with(field))
+                .map(|line| format!("{line}\n"))
+                .collect();
+            let text =
+                format!("[[module]]\n[[module]]\n[hardware]\nbaud = 57600\n{MODULE}{second}");
+            let error = hardware_of(&text, "robots/x.toml").unwrap_err();
+            assert_eq!(
+                error.to_string(),
+                format!(
+                    "robots/x.toml:12:1: field `hardware.module[2].{field}`: missing; every \
+                     [[hardware.module]] table must give it"
+                )
+            );
+        }
+        // The optional `zero_length` may be left out.
+        assert!(parse(MODULE).is_ok());
+    }
 }

@@ -97,6 +97,9 @@ pub struct Device<'m> {
     bus_free: Instant,
     start: Instant,
     origin: f64,
+    /// When the first packet received ended on the bus: the silent servo's clock starts
+    /// there, so a `run` started later than the emulator still gets its safe start.
+    first_packet: Option<Instant>,
     /// When each servo last heard an instruction packet (its Bus Watchdog's reference).
     heard: Vec<Option<Instant>>,
     draws: Draws,
@@ -132,6 +135,7 @@ impl<'m> Device<'m> {
             bus_free: start,
             start,
             origin,
+            first_packet: None,
             heard: vec![None; n],
             draws: Draws::seed_from_u64(settings.faults.seed),
             log: EmulatorLog {
@@ -309,6 +313,7 @@ impl<'m> Device<'m> {
             return Ok(());
         };
         let t = self.plant_time(end);
+        let first_packet = *self.first_packet.get_or_insert(end);
         self.replies.clear();
         let mut packet = None;
         match request.what {
@@ -328,8 +333,8 @@ impl<'m> Device<'m> {
         let mut states = Vec::new();
         let replies = std::mem::take(&mut self.replies);
         for reply in &replies {
-            let since_start = end.saturating_duration_since(self.start);
-            let fate = fate_of(reply.id, &self.faults, since_start, &mut self.draws);
+            let since_first = end.saturating_duration_since(first_packet);
+            let fate = fate_of(reply.id, &self.faults, since_first, &mut self.draws);
             self.log.fates[fate as usize] += 1;
             if let Some(state) = packet.as_ref().and_then(|p| state_block(p, &reply.params)) {
                 states.push(StateReply {
@@ -403,8 +408,10 @@ fn state_block(packet: &PacketBuf, params: &[u8]) -> Option<ServoState> {
     .then(|| ServoState::from_bytes(&params[usize::from(skip)..]))
 }
 
-fn fate_of(id: u8, faults: &Faults, since_start: Duration, draws: &mut Draws) -> ReplyFate {
-    if faults.silent_servo == Some(id) && since_start >= faults.silent_after {
+/// What happens to a status packet of servo `id`, sent `since_first` after the first
+/// packet the device received.
+fn fate_of(id: u8, faults: &Faults, since_first: Duration, draws: &mut Draws) -> ReplyFate {
+    if faults.silent_servo == Some(id) && since_first >= faults.silent_after {
         return ReplyFate::Silent;
     }
     // Draw all three every time so one fault's setting does not shift another's sequence.

@@ -62,7 +62,8 @@ pub struct Faults {
     /// A servo that stops answering (it still obeys instructions, as with a broken
     /// reply line).
     pub silent_servo: Option<u8>,
-    /// When the silent servo falls silent, after the emulator starts serving.
+    /// When the silent servo falls silent, after the first packet the emulator receives
+    /// (not its start: a `run` started later still gets its safe start).
     pub silent_after: Duration,
     /// Seed of the fault draws (reproducible runs).
     pub seed: u64,
