@@ -686,19 +686,19 @@ fn a_hardware_log_with_gaps_is_drawn() {
 }
 
 /// `simulate`'s outputs for the paper scenario shortened to `seconds`, written into `dir`:
-/// `trajectory.csv`, `trajectory_pd.csv`, `summary.json`, `figure.png`, `figure.svg`.
+/// `trajectory.csv`, `trajectory_pd.csv`, `summary.json`, `figure.png`, `figure.svg`, the
+/// 3-D view `robot.png`, `robot.svg`.
 fn simulate_into(dir: &Path, seconds: f64) {
     use softcbf::cli::load_robot;
     use softcbf::model::Model;
     use softcbf::scenario::ScenarioFile;
-    use softcbf::sim::{barriers_per_module, simulate};
+    use softcbf::sim::simulate;
     let model = Model::new(load_robot(None).unwrap()).unwrap();
     let mut scenario = ScenarioFile::paper_sim().resolve(&model).unwrap();
     scenario.duration = seconds;
     let main = simulate(&model, &scenario, true, &mut |_| {}).unwrap();
     let pd = simulate(&model, &scenario, false, &mut |_| {}).unwrap();
-    let per_module = barriers_per_module(model.generated.barrier_table(), model.n_modules());
-    softcbf::output::write_outputs(dir, &main, Some(&pd), &per_module).unwrap();
+    softcbf::output::write_outputs(dir, &main, Some(&pd), &model, false).unwrap();
 }
 
 /// `softcbf plot`'s library part: the figures `simulate` drew come back from its files,
