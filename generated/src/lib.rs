@@ -1,7 +1,8 @@
 //! softcbf-generated: the robot models emitted by `softcbf-codegen` at build time.
 //!
 //! `build.rs` generates one module per robot structure found in the workspace's `robots/`
-//! directory (and in `SOFTCBF_ROBOTS`); each module has array-typed functions
+//! directory, registered in `robots/local.list` (`softcbf-codegen add FILE`) or listed in
+//! `SOFTCBF_ROBOTS`; each module has array-typed functions
 //! (`segment_transforms`, `plate_poses`, `barriers`, `barrier_terms`, `joint_terms`,
 //! `model_terms`), the table `BARRIERS` of what each barrier is ([`BarrierInfo`]) and a
 //! `Model` implementing [`GeneratedModel`], the slice-based interface the runtime uses,
