@@ -69,18 +69,23 @@ pub enum RegistryError {
     },
 }
 
+/// The text of `registry`; `None` when it does not exist.
+fn read_text(registry: &Path) -> Result<Option<String>, RegistryError> {
+    match std::fs::read_to_string(registry) {
+        Ok(text) => Ok(Some(text)),
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(RegistryError::Read {
+            path: registry.to_path_buf(),
+            source,
+        }),
+    }
+}
+
 /// The registered files of `registry`, in file order; a registry that does not exist
 /// registers nothing.
 pub fn read(registry: &Path) -> Result<Vec<Entry>, RegistryError> {
-    let text = match std::fs::read_to_string(registry) {
-        Ok(text) => text,
-        Err(error) if error.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(source) => {
-            return Err(RegistryError::Read {
-                path: registry.to_path_buf(),
-                source,
-            });
-        }
+    let Some(text) = read_text(registry)? else {
+        return Ok(Vec::new());
     };
     Ok(parse(&text, registry_dir(registry)))
 }
@@ -276,15 +281,8 @@ pub fn remove(registry: &Path, file: &Path) -> Result<Vec<Entry>, RegistryError>
         path: file.to_path_buf(),
         source,
     })?;
-    let text = match std::fs::read_to_string(registry) {
-        Ok(text) => text,
-        Err(error) if error.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(source) => {
-            return Err(RegistryError::Read {
-                path: registry.to_path_buf(),
-                source,
-            });
-        }
+    let Some(text) = read_text(registry)? else {
+        return Ok(Vec::new());
     };
     let removed: Vec<Entry> = parse(&text, registry_dir(registry))
         .into_iter()
