@@ -348,20 +348,7 @@ fn lexical(path: &Path) -> PathBuf {
     out
 }
 
-/// `path` as one shell word, for commands printed to be copied: as it is when it has only
-/// letters, digits and `/._-+,:=@%`, else in single quotes.
-pub fn shell_word(path: &Path) -> String {
-    let text = path.to_string_lossy();
-    let plain = !text.is_empty()
-        && text
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "/._-+,:=@%".contains(c));
-    if plain {
-        text.into_owned()
-    } else {
-        format!("'{}'", text.replace('\'', "'\\''"))
-    }
-}
+pub use softcbf_description::toml_file::shell_word;
 
 /// A robot file a build compiles in, and how it reads now.
 pub struct Source {

@@ -32,20 +32,10 @@ pub enum ModelError {
     },
 }
 
-/// `path`, absolute, as one shell word of a command printed to be copied: as it is when
-/// it has only letters, digits and `/._-+,:=@%`, else in single quotes.
+/// `path`, absolute, as one shell word of a command printed to be copied.
 fn shell_word(path: &std::path::Path) -> String {
     let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let text = absolute.to_string_lossy();
-    if !text.is_empty()
-        && text
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "/._-+,:=@%".contains(c))
-    {
-        text.into_owned()
-    } else {
-        format!("'{}'", text.replace('\'', "'\\''"))
-    }
+    softcbf_description::toml_file::shell_word(&absolute)
 }
 
 /// A robot ready for computation.

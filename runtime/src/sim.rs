@@ -21,7 +21,7 @@ use crate::reference::ReferenceSignal;
 use crate::reference::ReferenceSpec;
 use crate::scenario::Scenario;
 use crate::settings::{
-    Described, IntegratorReport, SettingsReport, Source, Sourced, file_name, software, vector_text,
+    Described, IntegratorReport, SettingsReport, Sourced, file_name, software, vector_text,
 };
 
 /// Why a run could not start.
@@ -193,10 +193,12 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
             points.last().map_or(0.0, |p| p.0)
         ),
     };
+    // A run whose filter differs from the scenario's is the PD+ comparison, which the
+    // `compare` setting asked for.
     let filter_source = if filter == scenario.controller.filter {
         sources.filter
     } else {
-        Source::CommandLine
+        sources.compare
     };
     let tolerances = &scenario.tolerances;
     SettingsReport {

@@ -85,6 +85,13 @@ fn the_robot_files_gains_are_used_unless_the_scenario_or_the_command_line_say_ot
     );
     assert_eq!(from_robot["robot"], "soft-three");
     assert_eq!(from_robot["settings"]["robot"]["file"], robot);
+    // The PD+ comparison runs without the filter because the scenario's `compare` asks.
+    let comparison = &from_robot["comparison"];
+    assert_eq!(
+        setting(comparison, "filter"),
+        (&Value::from(false), "scenario")
+    );
+    assert_eq!(setting(comparison, "p1"), (&Value::from(3.0), "robot_file"));
 
     // The paper robot with --p 3 on the command line runs the same controller: the same
     // trajectory to the last digit, so the robot file's gains were used, not just recorded.

@@ -843,6 +843,22 @@ pub(crate) mod testing {
     }
 }
 
+/// `path` as one shell word, for commands printed to be copied (`softcbf-codegen add
+/// PATH`): as it is when it has only letters, digits and `/._-+,:=@%`, else in single
+/// quotes.
+pub fn shell_word(path: &Path) -> String {
+    let text = path.to_string_lossy();
+    let plain = !text.is_empty()
+        && text
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "/._-+,:=@%".contains(c));
+    if plain {
+        text.into_owned()
+    } else {
+        format!("'{}'", text.replace('\'', "'\\''"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -354,24 +354,25 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
             exit::FAULT
         }
     };
-    let written = write_summary(&args.out, &used, &settings.set_point, &summary, threshold)
-        .and_then(|path| {
-            super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model).map(
-                |mut files| {
-                    files.push(path);
-                    files
-                },
-            )
-        });
-    match written {
-        Ok(files) => {
-            let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
-            console.say(&format!("wrote {}", names.join(", ")));
+    // The log is closed and drawn whatever becomes of the summary, and the other way round.
+    let logged = super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model);
+    let summarized = write_summary(&args.out, &used, &settings.set_point, &summary, threshold);
+    let mut files = Vec::new();
+    for (written, what) in [
+        (logged, "the log or figures"),
+        (summarized.map(|path| vec![path]), "the summary"),
+    ] {
+        match written {
+            Ok(written) => files.extend(written),
+            Err(e) => {
+                eprintln!("error: {what} could not be written: {e}");
+                code = exit::worst(code, exit::ERROR);
+            }
         }
-        Err(e) => {
-            eprintln!("error: the log or figures could not be written: {e}");
-            code = exit::worst(code, exit::ERROR);
-        }
+    }
+    if !files.is_empty() {
+        let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
+        console.say(&format!("wrote {}", names.join(", ")));
     }
     if let Some(error) = console.error() {
         eprintln!("error: {error}; the log is in {}", args.out.display());
@@ -388,9 +389,7 @@ pub fn run_settings_report(
     settings: &RunSettings,
 ) -> SettingsReport {
     let nq = 3 * robot.modules.len();
-    let gains = settings.gains.clone().unwrap_or_else(|| {
-        resolve_gains(&GainOptions::default(), &ScenarioGains::default(), robot)
-    });
+    let gains = settings.gains_for(robot);
     let given = |option: bool| {
         if option {
             Source::CommandLine

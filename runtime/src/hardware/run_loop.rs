@@ -41,7 +41,6 @@ use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::Model;
 use crate::plant::Plant;
 use crate::protocol::{Bus, BusCounters};
-use crate::settings::{GainOptions, ScenarioGains, resolve_gains};
 use crate::sim::BarrierMinimum;
 
 use crate::hardware::log::FIXED_EXTRA;
@@ -157,14 +156,9 @@ pub fn run<P: ServoPort>(
     settings.validate(nq).map_err(RunError::Setting)?;
     let hardware = map.hardware();
     let mut controller_settings = ControllerSettings::paper(model);
-    let gains = settings.gains.clone().unwrap_or_else(|| {
-        resolve_gains(
-            &GainOptions::default(),
-            &ScenarioGains::default(),
-            &model.robot,
-        )
-    });
-    gains.apply(&mut controller_settings);
+    settings
+        .gains_for(&model.robot)
+        .apply(&mut controller_settings);
     controller_settings.filter = settings.filter;
     // The filter chooses among the commands the cables can realize.
     controller_settings.input_limits = map.tension_limit_rows();

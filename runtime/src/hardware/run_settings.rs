@@ -65,6 +65,18 @@ impl RunSettings {
         }
     }
 
+    /// The gains of the run: [`RunSettings::gains`], else `robot`'s file's, else the
+    /// built-in paper gains.
+    pub fn gains_for(&self, robot: &softcbf_description::Robot) -> Gains {
+        self.gains.clone().unwrap_or_else(|| {
+            crate::settings::resolve_gains(
+                &crate::settings::GainOptions::default(),
+                &crate::settings::ScenarioGains::default(),
+                robot,
+            )
+        })
+    }
+
     /// The Bus Watchdog register value (units of 20 ms; `0`: off).
     pub fn bus_watchdog_units(&self) -> u8 {
         let units = (self.bus_watchdog * 1000.0 / servo::BUS_WATCHDOG_UNIT_MS).ceil();
