@@ -131,7 +131,8 @@ fn main() {
             format!("Model generated from `{}`.", label.replace('`', "'"))
         };
         registry.push_str(&format!(
-            "#[doc = {doc:?}]\n#[allow(clippy::all, clippy::pedantic, unused)]\npub mod {name} {{\n    include!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// The generated source compiled above (unused constants cost nothing in a binary).\n    pub const SOURCE: &str = include_str!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// This model behind the [`crate::GeneratedModel`] interface.\n    pub struct Model;\n    crate::impl_generated_model!(Model, \"{name}\", {label:?}, \"{routing}\");\n}}\n"
+            "#[doc = {doc:?}]\n#[allow(clippy::all, clippy::pedantic, unused)]\npub mod {name} {{\n    include!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// The generated source compiled above (unused constants cost nothing in a binary).\n    pub const SOURCE: &str = include_str!(concat!(env!(\"OUT_DIR\"), \"/{name}.rs\"));\n    /// This model behind the [`crate::GeneratedModel`] interface.\n    pub struct Model;\n    /// The key of the structure this model was generated for.\n    pub const STRUCTURE_KEY: &str = {key:?};\n    crate::impl_generated_model!(Model, \"{name}\", {label:?}, \"{routing}\");\n}}\n",
+            key = structure.key()
         ));
         entries.push(format!("&{name}::Model"));
     }

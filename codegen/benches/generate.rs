@@ -15,11 +15,7 @@ fn bench_generate(c: &mut Criterion) {
     // One generation of 8 modules takes a fraction of a second: ten samples suffice.
     group.sample_size(10);
     for n in [1usize, 2, 4, 8] {
-        let structure = Structure {
-            corners: vec![6; n],
-            tendons: vec![3; n],
-            routing: Routing::Local,
-        };
+        let structure = Structure::new(vec![6; n], vec![3; n], Routing::Local);
         group.bench_function(format!("{n}_modules"), |bench| {
             bench.iter(|| {
                 generate(black_box(&structure), "the benchmark structure")

@@ -29,5 +29,5 @@ pub mod sexpr;
 
 pub use model::{GeneratedSource, generate};
 // The modules of the description that generation reads, under their old paths inside this
-// crate (`crate::robot::Structure`, `crate::layout::param_layout`).
-use softcbf_description::{layout, robot};
+// crate (`crate::robot::Structure`, `crate::layout::param_layout`, `crate::barriers`).
+use softcbf_description::{barriers, layout, robot};

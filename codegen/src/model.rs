@@ -12,32 +12,21 @@ use crate::layout::{Param, param_layout};
 use crate::program::OpCount;
 use crate::robot::Structure;
 
-/// What a barrier keeps apart (the geometry of each kind: docs/model.md §3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BarrierKind {
-    /// A corner of a module's top plate above the plane of its bottom plate.
-    PlateCorner,
-}
+pub use crate::barriers::{BarrierKind, Point};
 
-impl BarrierKind {
-    /// The variant's name, as the generated table spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            BarrierKind::PlateCorner => "PlateCorner",
-        }
-    }
-}
-
-/// One barrier `b(p, q) ≥ 0` of the model and where it sits on the robot.
+/// One barrier `b(p, q) ≥ 0` of the model and where it sits on the robot (a row of
+/// `softcbf_description::barriers::barrier_list` with its expression).
 #[derive(Clone, Debug)]
 pub struct Barrier {
     /// What it keeps apart.
     pub kind: BarrierKind,
-    /// The module whose point it watches (0-based, base first). Its value may depend on
-    /// the coordinates of this module and of every module below it.
+    /// The module it belongs to (0-based, base first). Its value may depend on the
+    /// coordinates of this module and of every module below it.
     pub module: usize,
-    /// The point on that module (for a plate corner: the corner, 0-based).
-    pub point: usize,
+    /// The watched point (for a plate corner: `Point::Corner(j)`); `None` for a limit.
+    pub point: Option<Point>,
+    /// The obstacle (0-based), for an environment barrier.
+    pub obstacle: Option<usize>,
     /// A short stable name, 1-based like the reports: `module 1 corner 3`.
     pub label: String,
     /// The expression of `b`.
@@ -60,6 +49,8 @@ struct ModuleExprs {
     corner_heights: Vec<Id>,
     /// The bending coordinates `a = Δx/d`, `b = Δy/d` and `u = a² + b² = θ²`.
     bend: [Id; 3],
+    /// `L = L0 + δL`.
+    length: Id,
     /// `ε_ij`.
     margins: Vec<Id>,
 }
@@ -164,22 +155,23 @@ pub fn build(structure: &Structure) -> SymbolicModel {
             translation,
             corner_heights,
             bend,
+            length,
             margins,
         });
     }
+    let mut world = WorldPoses::default();
     let mut barriers = Vec::new();
-    for (i, m) in modules.iter().enumerate() {
-        for (j, (&c, &eps)) in m.corner_heights.iter().zip(&m.margins).enumerate() {
-            let value = arena.sub(c, eps);
-            barriers.push(Barrier {
-                kind: BarrierKind::PlateCorner,
-                module: i,
-                point: j,
-                label: format!("module {} corner {}", i + 1, j + 1),
-                value,
-                params: params_read(&arena, &params, value),
-            });
-        }
+    for spec in crate::barriers::barrier_list(structure) {
+        let value = barrier_value(&mut arena, &modules, &mut world, &param, &spec);
+        barriers.push(Barrier {
+            kind: spec.kind,
+            module: spec.module,
+            point: spec.point,
+            obstacle: spec.obstacle,
+            label: spec.label,
+            value,
+            params: params_read(&arena, &params, value),
+        });
     }
     let mut tangent = Tangent::new();
     for m in &modules {
@@ -196,6 +188,195 @@ pub fn build(structure: &Structure) -> SymbolicModel {
         params,
         param_names,
         structure: structure.clone(),
+    }
+}
+
+/// World poses `W_i = T_1 ⋯ T_i` of the top plates as expressions, built on first use.
+#[derive(Default)]
+struct WorldPoses {
+    /// `(R, t)` of `W_i`, for `i` below the length.
+    poses: Vec<([[Id; 3]; 3], [Id; 3])>,
+}
+
+impl WorldPoses {
+    /// `W_i` of module `i`'s top plate.
+    fn pose(
+        &mut self,
+        arena: &mut Arena,
+        modules: &[ModuleExprs],
+        i: usize,
+    ) -> ([[Id; 3]; 3], [Id; 3]) {
+        while self.poses.len() <= i {
+            let k = self.poses.len();
+            let m = &modules[k];
+            let pose = match self.poses.last() {
+                None => (m.rotation, m.translation),
+                Some(&(parent_r, parent_t)) => {
+                    let rotation = std::array::from_fn(|r| {
+                        std::array::from_fn(|c| {
+                            let column = [m.rotation[0][c], m.rotation[1][c], m.rotation[2][c]];
+                            arena.dot(&parent_r[r], &column)
+                        })
+                    });
+                    (rotation, apply(arena, (parent_r, parent_t), m.translation))
+                }
+            };
+            self.poses.push(pose);
+        }
+        self.poses[i]
+    }
+
+    /// `W_{i−1}`, the pose of module `i`'s base (`None`: the world itself, for `i = 0`).
+    fn base(
+        &mut self,
+        arena: &mut Arena,
+        modules: &[ModuleExprs],
+        i: usize,
+    ) -> Option<([[Id; 3]; 3], [Id; 3])> {
+        i.checked_sub(1)
+            .map(|below| self.pose(arena, modules, below))
+    }
+}
+
+/// `R x + t`.
+fn apply(
+    arena: &mut Arena,
+    (rotation, translation): ([[Id; 3]; 3], [Id; 3]),
+    x: [Id; 3],
+) -> [Id; 3] {
+    std::array::from_fn(|r| {
+        let rotated = arena.dot(&rotation[r], &x);
+        arena.add(rotated, translation[r])
+    })
+}
+
+/// The expression of one barrier of the list (docs/model.md §3).
+fn barrier_value(
+    arena: &mut Arena,
+    modules: &[ModuleExprs],
+    world: &mut WorldPoses,
+    param: &dyn Fn(Param) -> Id,
+    spec: &crate::barriers::BarrierSpec,
+) -> Id {
+    let i = spec.module;
+    let m = &modules[i];
+    match spec.kind {
+        BarrierKind::PlateCorner => {
+            let Some(Point::Corner(j)) = spec.point else {
+                unreachable!("a plate-corner barrier watches a corner")
+            };
+            arena.sub(m.corner_heights[j], m.margins[j])
+        }
+        BarrierKind::ElongationMin => {
+            // b = δL − (δL_min + ε)
+            let min = param(Param::ElongationMin(i));
+            let margin = param(Param::ElongationMargin(i));
+            let bound = arena.add(min, margin);
+            arena.sub(m.q[2], bound)
+        }
+        BarrierKind::ElongationMax => {
+            // b = (δL_max − ε) − δL
+            let max = param(Param::ElongationMax(i));
+            let margin = param(Param::ElongationMargin(i));
+            let bound = arena.sub(max, margin);
+            arena.sub(bound, m.q[2])
+        }
+        BarrierKind::Bend => {
+            // b = (θ_b² − θ²) / (2 θ_b), θ_b = θ_max − ε, with θ² = u: smooth at θ = 0 and
+            // ≈ θ_b − θ near the limit.
+            let max = param(Param::MaxBend(i));
+            let margin = param(Param::BendMargin(i));
+            let bound = arena.sub(max, margin);
+            let bound2 = arena.powi(bound, 2);
+            let gap = arena.sub(bound2, m.bend[2]);
+            let two = arena.constant(2.0);
+            let twice = arena.mul(two, bound);
+            arena.div(gap, twice)
+        }
+        BarrierKind::HalfSpace | BarrierKind::Sphere => {
+            let o = spec
+                .obstacle
+                .expect("an environment barrier has an obstacle");
+            let x = watched_point(arena, modules, world, param, spec);
+            let margin = param(Param::ObstacleMargin(o));
+            if spec.kind == BarrierKind::HalfSpace {
+                // b = n·x − o − ε
+                let normal: [Id; 3] = std::array::from_fn(|c| param(Param::ObstacleNormal(o, c)));
+                let offset = param(Param::ObstacleOffset(o));
+                let height = arena.dot(&normal, &x);
+                let bound = arena.add(offset, margin);
+                arena.sub(height, bound)
+            } else {
+                // b = |x − c| − ρ − ε
+                let d: [Id; 3] = std::array::from_fn(|c| {
+                    let center = param(Param::ObstacleCenter(o, c));
+                    arena.sub(x[c], center)
+                });
+                let squared = arena.dot(&d, &d);
+                let distance = arena.sqrt(squared);
+                let radius = param(Param::ObstacleRadius(o));
+                let bound = arena.add(radius, margin);
+                arena.sub(distance, bound)
+            }
+        }
+    }
+}
+
+/// World coordinates of the point an environment barrier watches.
+fn watched_point(
+    arena: &mut Arena,
+    modules: &[ModuleExprs],
+    world: &mut WorldPoses,
+    param: &dyn Fn(Param) -> Id,
+    spec: &crate::barriers::BarrierSpec,
+) -> [Id; 3] {
+    let i = spec.module;
+    let o = spec
+        .obstacle
+        .expect("an environment barrier has an obstacle");
+    let zero = arena.constant(0.0);
+    let in_plate = |arena: &mut Arena, world: &mut WorldPoses, local: [Id; 3]| {
+        let pose = world.pose(arena, modules, i);
+        apply(arena, pose, local)
+    };
+    match spec.point.expect("an environment barrier watches a point") {
+        Point::Corner(j) => {
+            let r = param(Param::CornerRadius(i));
+            let x = arena.mul(r, param(Param::CornerCos(i, j)));
+            let y = arena.mul(r, param(Param::CornerSin(i, j)));
+            in_plate(arena, world, [x, y, zero])
+        }
+        Point::Centre => in_plate(arena, world, [zero, zero, zero]),
+        Point::Listed(k) => {
+            let local = std::array::from_fn(|c| param(Param::PointCoordinate(o, k, c)));
+            in_plate(arena, world, local)
+        }
+        Point::Arc(k) => {
+            // The PCC arc up to fraction s has bend coordinates (s a, s b), u_s = s² u, and
+            // length s L: its end is s L (s a f_c(u_s), s b f_c(u_s), f_s(u_s)) in the
+            // segment's base frame.
+            let s = param(Param::ArcFraction(o, k));
+            let m = &modules[i];
+            let [a, b, u] = m.bend;
+            let s2 = arena.powi(s, 2);
+            let u_s = arena.mul(s2, u);
+            let fs = arena.fs(u_s);
+            let fc = arena.fc(u_s);
+            let length = arena.mul(s, m.length);
+            let sa = arena.mul(s, a);
+            let sb = arena.mul(s, b);
+            let sa_fc = arena.mul(sa, fc);
+            let sb_fc = arena.mul(sb, fc);
+            let local = [
+                arena.mul(length, sa_fc),
+                arena.mul(length, sb_fc),
+                arena.mul(length, fs),
+            ];
+            match world.base(arena, modules, i) {
+                Some(pose) => apply(arena, pose, local),
+                None => local,
+            }
+        }
     }
 }
 
@@ -581,7 +762,29 @@ impl SymbolicModel {
         let barrier_table = self.barriers.iter().map(|b| {
             let kind = format_ident!("{}", b.kind.name());
             let module = Literal::usize_unsuffixed(b.module);
-            let point = Literal::usize_unsuffixed(b.point);
+            let point = match b.point {
+                None => quote!(None),
+                Some(Point::Corner(j)) => {
+                    let j = Literal::usize_unsuffixed(j);
+                    quote!(Some(Point::Corner(#j)))
+                }
+                Some(Point::Centre) => quote!(Some(Point::Centre)),
+                Some(Point::Listed(k)) => {
+                    let k = Literal::usize_unsuffixed(k);
+                    quote!(Some(Point::Listed(#k)))
+                }
+                Some(Point::Arc(k)) => {
+                    let k = Literal::usize_unsuffixed(k);
+                    quote!(Some(Point::Arc(#k)))
+                }
+            };
+            let obstacle = match b.obstacle {
+                None => quote!(None),
+                Some(o) => {
+                    let o = Literal::usize_unsuffixed(o);
+                    quote!(Some(#o))
+                }
+            };
             let label = &b.label;
             let params = b.params.iter().map(|&k| Literal::usize_unsuffixed(k));
             quote! {
@@ -589,13 +792,14 @@ impl SymbolicModel {
                     kind: BarrierKind::#kind,
                     module: #module,
                     point: #point,
+                    obstacle: #obstacle,
                     label: #label,
                     params: &[#(#params),*],
                 }
             }
         });
         let tokens = quote! {
-            use crate::{BarrierInfo, BarrierKind};
+            use crate::{BarrierInfo, BarrierKind, Point};
             /// Number of modules.
             pub const N_MODULES: usize = #n;
             /// Number of generalized coordinates (3 per module).

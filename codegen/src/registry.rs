@@ -134,22 +134,54 @@ pub fn shipped(robots_dir: &Path) -> Vec<PathBuf> {
     files
 }
 
-/// The benchmark structures every build has: `hex_1`, `hex_4`, `hex_8` (n hexagonal
-/// modules, three local tendons each).
+/// The benchmark and test structures every build has: `hex_1`, `hex_4`, `hex_8` (n
+/// hexagonal modules, three local tendons each) and `every_barrier` ([`every_barrier`]).
 pub fn benchmarks() -> Vec<(String, Structure)> {
-    [1usize, 4, 8]
+    let mut list: Vec<(String, Structure)> = [1usize, 4, 8]
         .into_iter()
         .map(|n| {
             (
                 format!("hex_{n}"),
-                Structure {
-                    corners: vec![6; n],
-                    tendons: vec![3; n],
-                    routing: Routing::Local,
-                },
+                Structure::new(vec![6; n], vec![3; n], Routing::Local),
             )
         })
-        .collect()
+        .collect();
+    list.push(("every_barrier".to_string(), every_barrier()));
+    list
+}
+
+/// Two hexagonal modules with every kind of barrier, for the tests: elongation and bend
+/// limits on both modules, a half-space and a sphere, each watching a corner, the centre,
+/// a listed point and two backbone points of each module.
+pub fn every_barrier() -> Structure {
+    use softcbf_description::barriers::{LimitFlags, ObstacleKind, ObstacleStructure, PointShape};
+    let mut structure = Structure::new(vec![6, 6], vec![3, 3], Routing::Local);
+    structure.limits = vec![
+        LimitFlags {
+            elongation: true,
+            bend: true,
+        };
+        2
+    ];
+    let watch: Vec<(usize, PointShape)> = (0..2)
+        .flat_map(|i| {
+            [
+                (i, PointShape::Corner(2)),
+                (i, PointShape::Centre),
+                (i, PointShape::Listed),
+                (i, PointShape::Arc),
+                (i, PointShape::Arc),
+            ]
+        })
+        .collect();
+    structure.obstacles = [ObstacleKind::HalfSpace, ObstacleKind::Sphere]
+        .into_iter()
+        .map(|kind| ObstacleStructure {
+            kind,
+            watch: watch.clone(),
+        })
+        .collect();
+    structure
 }
 
 /// Rust's keywords (strict, reserved and weak ones that cannot name a module).
@@ -520,11 +552,7 @@ mod tests {
 
     #[test]
     fn structures_in_words() {
-        let structure = Structure {
-            corners: vec![5, 5],
-            tendons: vec![3, 3],
-            routing: Routing::Local,
-        };
+        let structure = Structure::new(vec![5, 5], vec![3, 3], Routing::Local);
         assert_eq!(
             describe(&structure),
             "2 modules, corners [5, 5], tendons [3, 3], local routing"

@@ -11,16 +11,11 @@
 //! [`find`] picks the model of a structure. Numbers are never compiled in: every function
 //! takes the parameter vector `p` laid out by `softcbf_description::layout`.
 
-/// What a barrier keeps apart.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BarrierKind {
-    /// A corner of a module's top plate above the plane of its bottom plate
-    /// (`b_ij = c_ij − ε_ij`).
-    PlateCorner,
-}
+pub use softcbf_description::barriers::{BarrierKind, KindGroup, Point};
 
 /// One row of a model's barrier table: which barrier sits at an index of the barrier
-/// arrays (`barriers`, the Jacobian rows, `J̇q̇`).
+/// arrays (`barriers`, the Jacobian rows, `J̇q̇`). The rows are those of
+/// `softcbf_description::barriers::barrier_list` for the model's structure, in its order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BarrierInfo {
     /// What it keeps apart.
@@ -28,12 +23,25 @@ pub struct BarrierInfo {
     /// The module it belongs to, **0-based** (base first). Its Jacobian row is zero past
     /// this module's coordinates `3·module..3·module + 3`.
     pub module: usize,
-    /// The point on that module, **0-based** (for a plate corner: the corner).
-    pub point: usize,
+    /// The watched point, **0-based** (for a plate corner: `Point::Corner(j)`); `None` for
+    /// a limit.
+    pub point: Option<Point>,
+    /// The obstacle, **0-based** in the robot file's order, for an environment barrier.
+    pub obstacle: Option<usize>,
     /// A short stable name for reports and logs, **1-based**: `module 1 corner 3`.
     pub label: &'static str,
     /// Parameter-vector indices the barrier reads, ascending.
     pub params: &'static [usize],
+}
+
+impl BarrierInfo {
+    /// The corner index (0-based) for a plate-corner barrier.
+    pub fn corner(&self) -> Option<usize> {
+        match (self.kind, self.point) {
+            (BarrierKind::PlateCorner, Some(Point::Corner(j))) => Some(j),
+            _ => None,
+        }
+    }
 }
 
 /// A generated model behind slices, so the runtime can choose it at run time.
@@ -51,6 +59,9 @@ pub trait GeneratedModel: Sync {
     fn tendons(&self) -> &'static [usize];
     /// Tendon routing, `"local"` or `"through"`.
     fn routing(&self) -> &'static str;
+    /// The key of the structure it was generated for
+    /// (`softcbf_description::Structure::key`).
+    fn structure_key(&self) -> &'static str;
     /// Parameter names in parameter-vector order.
     fn param_names(&self) -> &'static [&'static str];
     /// Every barrier, in the order of the barrier arrays.
@@ -145,6 +156,9 @@ macro_rules! impl_generated_model {
             fn routing(&self) -> &'static str {
                 $routing
             }
+            fn structure_key(&self) -> &'static str {
+                STRUCTURE_KEY
+            }
             fn param_names(&self) -> &'static [&'static str] {
                 &PARAM_NAMES
             }
@@ -238,14 +252,8 @@ macro_rules! impl_generated_model {
 
 include!(concat!(env!("OUT_DIR"), "/models.rs"));
 
-/// The model generated for a structure: corners and tendons per module, and routing.
-pub fn find(
-    corners: &[usize],
-    tendons: &[usize],
-    routing: &str,
-) -> Option<&'static dyn GeneratedModel> {
-    MODELS
-        .iter()
-        .copied()
-        .find(|m| m.corners() == corners && m.tendons() == tendons && m.routing() == routing)
+/// The model generated for a structure (corners, tendons, routing, limits and obstacles).
+pub fn find(structure: &softcbf_description::Structure) -> Option<&'static dyn GeneratedModel> {
+    let key = structure.key();
+    MODELS.iter().copied().find(|m| m.structure_key() == key)
 }

@@ -30,7 +30,7 @@ fn barrier_table(model: &Model) -> Value {
             json!({
                 "kind": format!("{:?}", b.kind),
                 "module": b.module + 1,
-                "point": b.point + 1,
+                "point": b.corner().map(|j| j + 1),
                 "label": b.label,
                 "params": params,
             })

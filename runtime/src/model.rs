@@ -66,9 +66,7 @@ impl Model {
     pub fn new(robot: Robot) -> Result<Model, ModelError> {
         let structure = robot.structure();
         let routing = routing_name(structure.routing);
-        let Some(generated) =
-            softcbf_generated::find(&structure.corners, &structure.tendons, routing)
-        else {
+        let Some(generated) = softcbf_generated::find(&structure) else {
             let available: Vec<String> = softcbf_generated::MODELS
                 .iter()
                 .map(|m| format!("{} (corners {:?})", m.name(), m.corners()))

@@ -101,9 +101,9 @@ pub struct RelaxedBarrier {
 
 /// Module and point (both 1-based) and label of barrier `k` of `table`.
 fn owner(table: &[BarrierInfo], k: usize) -> (usize, usize, &'static str) {
-    table
-        .get(k)
-        .map_or((0, 0, ""), |b| (b.module + 1, b.point + 1, b.label))
+    table.get(k).map_or((0, 0, ""), |b| {
+        (b.module + 1, b.corner().map_or(0, |j| j + 1), b.label)
+    })
 }
 
 /// How many barriers each of `modules` modules owns, in module order (the split the

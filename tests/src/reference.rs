@@ -561,6 +561,8 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
         barrier: [Some(10.0), Some(10.0)],
         gains: Default::default(),
         routing: Routing::Local,
+        limits: vec![Default::default(); modules.len()],
+        obstacles: Vec::new(),
         modules,
         hardware: None,
     }

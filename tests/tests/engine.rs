@@ -206,11 +206,7 @@ fn cse_leaves_every_output_unchanged() {
 #[test]
 fn cse_leaves_the_model_outputs_unchanged() {
     use softcbf_description::robot::{Routing, Structure};
-    let structure = Structure {
-        corners: vec![6, 4],
-        tendons: vec![3, 3],
-        routing: Routing::Local,
-    };
+    let structure = Structure::new(vec![6, 4], vec![3, 3], Routing::Local);
     let mut model = softcbf_codegen::model::build(&structure);
     let terms = model.barrier_term_exprs();
     let mut outputs = Vec::new();

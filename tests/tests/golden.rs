@@ -169,7 +169,7 @@ fn model_terms_is_joint_terms_and_barrier_terms() {
 /// corner-minor, with the parameters its expression reads.
 #[test]
 fn barrier_table_describes_the_plate_corners() {
-    use softcbf_generated::{BarrierKind, GeneratedModel};
+    use softcbf_generated::{BarrierKind, GeneratedModel, Point};
     let model = &softcbf_generated::paper_sim::Model;
     let table = model.barrier_table();
     assert_eq!(table.len(), model.corners().iter().sum::<usize>());
@@ -180,7 +180,10 @@ fn barrier_table_describes_the_plate_corners() {
         for j in 0..corners {
             let b = &table[k];
             assert_eq!(b.kind, BarrierKind::PlateCorner);
-            assert_eq!((b.module, b.point), (i, j));
+            assert_eq!(
+                (b.module, b.point, b.obstacle),
+                (i, Some(Point::Corner(j)), None)
+            );
             assert_eq!(b.label, format!("module {} corner {}", i + 1, j + 1));
             let read: Vec<&str> = b.params.iter().map(|&p| names[p]).collect();
             let expected = [

@@ -1,6 +1,7 @@
 //! The runtime parameter vector of a generated model: which number sits at which index.
 //! Code generation reads symbols from this layout and the runtime packs a robot with it.
 
+use crate::barriers::{PointShape, Shape, WatchedPoint};
 use crate::robot::{Robot, Structure};
 
 /// One entry of the parameter vector (module `i`, corner `j`, 0-based).
@@ -18,6 +19,30 @@ pub enum Param {
     CornerSin(usize, usize),
     /// `ε_j` of corner `j` of module `i` \[m\].
     Margin(usize, usize),
+    /// `δL_min` of module `i` \[m\].
+    ElongationMin(usize),
+    /// `δL_max` of module `i` \[m\].
+    ElongationMax(usize),
+    /// Margin of module `i`'s elongation barriers \[m\].
+    ElongationMargin(usize),
+    /// `θ_max` of module `i` \[rad\].
+    MaxBend(usize),
+    /// Margin of module `i`'s bend barrier \[rad\].
+    BendMargin(usize),
+    /// Component `c` of the unit normal of half-space obstacle `o`.
+    ObstacleNormal(usize, usize),
+    /// Offset `o` of half-space obstacle `o` (`n·x ≥ o`) \[m\].
+    ObstacleOffset(usize),
+    /// Component `c` of the centre of sphere obstacle `o` \[m\].
+    ObstacleCenter(usize, usize),
+    /// Radius of sphere obstacle `o` \[m\].
+    ObstacleRadius(usize),
+    /// Margin of obstacle `o` \[m\].
+    ObstacleMargin(usize),
+    /// Component `c` (plate frame) of watched point `k` of obstacle `o` \[m\].
+    PointCoordinate(usize, usize, usize),
+    /// Arc fraction `s` of watched point `k` of obstacle `o`.
+    ArcFraction(usize, usize),
 }
 
 impl Param {
@@ -30,12 +55,59 @@ impl Param {
             Param::CornerCos(i, j) => format!("corner_cos_{i}_{j}"),
             Param::CornerSin(i, j) => format!("corner_sin_{i}_{j}"),
             Param::Margin(i, j) => format!("margin_{i}_{j}"),
+            Param::ElongationMin(i) => format!("elongation_min_{i}"),
+            Param::ElongationMax(i) => format!("elongation_max_{i}"),
+            Param::ElongationMargin(i) => format!("elongation_margin_{i}"),
+            Param::MaxBend(i) => format!("max_bend_{i}"),
+            Param::BendMargin(i) => format!("bend_margin_{i}"),
+            Param::ObstacleNormal(o, c) => format!("obstacle_{o}_normal_{c}"),
+            Param::ObstacleOffset(o) => format!("obstacle_{o}_offset"),
+            Param::ObstacleCenter(o, c) => format!("obstacle_{o}_center_{c}"),
+            Param::ObstacleRadius(o) => format!("obstacle_{o}_radius"),
+            Param::ObstacleMargin(o) => format!("obstacle_{o}_margin"),
+            Param::PointCoordinate(o, k, c) => format!("obstacle_{o}_point_{k}_{c}"),
+            Param::ArcFraction(o, k) => format!("obstacle_{o}_arc_{k}"),
         }
     }
 
-    /// This parameter's value for a robot of the matching structure.
+    /// This parameter's value for a robot of the matching structure (NaN where the robot
+    /// does not match, which [`pack_params`] never asks for).
     pub fn value(self, robot: &Robot) -> f64 {
+        let limits = |i: usize| robot.limits.get(i).cloned().unwrap_or_default();
+        let obstacle = |o: usize| robot.obstacles.get(o);
+        let watched =
+            |o: usize, k: usize| obstacle(o).and_then(|ob| ob.watch.get(k)).map(|w| w.point);
         match self {
+            Param::ElongationMin(i) => limits(i).elongation.map_or(f64::NAN, |e| e[0]),
+            Param::ElongationMax(i) => limits(i).elongation.map_or(f64::NAN, |e| e[1]),
+            Param::ElongationMargin(i) => limits(i).elongation_margin,
+            Param::MaxBend(i) => limits(i).max_bend.unwrap_or(f64::NAN),
+            Param::BendMargin(i) => limits(i).bend_margin,
+            Param::ObstacleNormal(o, c) => match obstacle(o).map(|ob| ob.shape) {
+                Some(Shape::HalfSpace { normal, .. }) => normal[c],
+                _ => f64::NAN,
+            },
+            Param::ObstacleOffset(o) => match obstacle(o).map(|ob| ob.shape) {
+                Some(Shape::HalfSpace { offset, .. }) => offset,
+                _ => f64::NAN,
+            },
+            Param::ObstacleCenter(o, c) => match obstacle(o).map(|ob| ob.shape) {
+                Some(Shape::Sphere { center, .. }) => center[c],
+                _ => f64::NAN,
+            },
+            Param::ObstacleRadius(o) => match obstacle(o).map(|ob| ob.shape) {
+                Some(Shape::Sphere { radius, .. }) => radius,
+                _ => f64::NAN,
+            },
+            Param::ObstacleMargin(o) => obstacle(o).map_or(f64::NAN, |ob| ob.margin),
+            Param::PointCoordinate(o, k, c) => match watched(o, k) {
+                Some(WatchedPoint::Listed(p)) => p[c],
+                _ => f64::NAN,
+            },
+            Param::ArcFraction(o, k) => match watched(o, k) {
+                Some(WatchedPoint::Arc(s)) => s,
+                _ => f64::NAN,
+            },
             Param::RestLength(i) => robot.modules[i].rest_length,
             Param::TendonRadius(i) => robot.modules[i].tendon_radius,
             Param::CornerRadius(i) => robot.modules[i].corner_radius,
@@ -46,7 +118,8 @@ impl Param {
     }
 }
 
-/// The parameter layout of a structure: module-major, corner-minor.
+/// The parameter layout of a structure: module-major, corner-minor; then each module's
+/// limits; then each obstacle's geometry, margin and watched points' numbers.
 pub fn param_layout(structure: &Structure) -> Vec<Param> {
     let mut layout = Vec::new();
     for (i, &corners) in structure.corners.iter().enumerate() {
@@ -61,6 +134,40 @@ pub fn param_layout(structure: &Structure) -> Vec<Param> {
                 Param::CornerSin(i, j),
                 Param::Margin(i, j),
             ]);
+        }
+    }
+    for (i, flags) in structure.limits.iter().enumerate() {
+        if flags.elongation {
+            layout.extend([
+                Param::ElongationMin(i),
+                Param::ElongationMax(i),
+                Param::ElongationMargin(i),
+            ]);
+        }
+        if flags.bend {
+            layout.extend([Param::MaxBend(i), Param::BendMargin(i)]);
+        }
+    }
+    for (o, obstacle) in structure.obstacles.iter().enumerate() {
+        match obstacle.kind {
+            crate::barriers::ObstacleKind::HalfSpace => {
+                layout.extend((0..3).map(|c| Param::ObstacleNormal(o, c)));
+                layout.push(Param::ObstacleOffset(o));
+            }
+            crate::barriers::ObstacleKind::Sphere => {
+                layout.extend((0..3).map(|c| Param::ObstacleCenter(o, c)));
+                layout.push(Param::ObstacleRadius(o));
+            }
+        }
+        layout.push(Param::ObstacleMargin(o));
+        for (k, &(_, shape)) in obstacle.watch.iter().enumerate() {
+            match shape {
+                PointShape::Listed => {
+                    layout.extend((0..3).map(|c| Param::PointCoordinate(o, k, c)));
+                }
+                PointShape::Arc => layout.push(Param::ArcFraction(o, k)),
+                PointShape::Corner(_) | PointShape::Centre => {}
+            }
         }
     }
     layout

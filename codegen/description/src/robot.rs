@@ -17,6 +17,7 @@ use serde::Deserialize;
 use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
+use crate::barriers::{LimitFlags, Limits, Obstacle, ObstacleStructure};
 use crate::gains::RawGain;
 use crate::limits;
 pub use crate::module::{Module, polygon_inertia};
@@ -53,6 +54,10 @@ pub struct Robot {
     pub routing: Routing,
     /// The modules, base first.
     pub modules: Vec<Module>,
+    /// The limits of each module (`[limits]`, `[module.limits]`), one entry per module.
+    pub limits: Vec<Limits>,
+    /// The obstacles (`[[obstacle]]`), in file order.
+    pub obstacles: Vec<Obstacle>,
     /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
     /// reads and checks it (`softcbf::hardware::description`).
     pub hardware: Option<HardwareTable>,
@@ -98,6 +103,10 @@ pub struct Structure {
     pub tendons: Vec<usize>,
     /// Tendon routing.
     pub routing: Routing,
+    /// Which limit barriers each module has, one entry per module.
+    pub limits: Vec<LimitFlags>,
+    /// Each obstacle's kind and watched points.
+    pub obstacles: Vec<ObstacleStructure>,
 }
 
 /// Default gravity when the file gives none [m/s²].
@@ -115,6 +124,8 @@ impl Robot {
             corners: self.modules.iter().map(|m| m.corner_angles.len()).collect(),
             tendons: self.modules.iter().map(|m| m.tendon_angles.len()).collect(),
             routing: self.routing,
+            limits: self.limits.iter().map(Limits::flags).collect(),
+            obstacles: self.obstacles.iter().map(Obstacle::structure).collect(),
         }
     }
 
@@ -150,9 +161,32 @@ impl Robot {
 }
 
 impl Structure {
+    /// A structure with plate-corner barriers only (no limits, no obstacles).
+    pub fn new(corners: Vec<usize>, tendons: Vec<usize>, routing: Routing) -> Structure {
+        let limits = vec![LimitFlags::default(); corners.len()];
+        Structure {
+            corners,
+            tendons,
+            routing,
+            limits,
+            obstacles: Vec::new(),
+        }
+    }
+
     /// Number of modules.
     pub fn modules(&self) -> usize {
         self.corners.len()
+    }
+
+    /// A canonical text of the whole structure: two structures are equal exactly when their
+    /// keys are (a generated model records the key of the structure it was built for).
+    pub fn key(&self) -> String {
+        format!("{self:?}")
+    }
+
+    /// Whether the structure has barriers other than the plate corners.
+    pub fn has_extra_barriers(&self) -> bool {
+        !self.obstacles.is_empty() || self.limits.iter().any(|f| f.elongation || f.bend)
     }
 }
 
@@ -311,6 +345,8 @@ impl Checker<'_> {
             barrier,
             gains,
             routing: file.routing.unwrap_or(Routing::Local),
+            limits: vec![Limits::default(); modules.len()],
+            obstacles: Vec::new(),
             modules,
             hardware: file.hardware.map(|table| HardwareTable {
                 text: Arc::from(self.text),

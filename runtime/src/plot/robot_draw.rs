@@ -365,7 +365,7 @@ pub(super) fn captions(scene: &Scene, model: &Model) -> (String, String) {
                 .generated
                 .barrier_table()
                 .get(j)
-                .map(|info| short_label(info.module, info.point))
+                .map(|info| short_label(info))
                 .unwrap_or_default();
             format!("lowest b = {} ({label})", format_mm(b))
         }
@@ -375,8 +375,11 @@ pub(super) fn captions(scene: &Scene, model: &Model) -> (String, String) {
 }
 
 /// `m1 c3`: module and corner, 1-based.
-pub(super) fn short_label(module: usize, point: usize) -> String {
-    format!("m{} c{}", module + 1, point + 1)
+pub(super) fn short_label(info: &softcbf_generated::BarrierInfo) -> String {
+    match info.corner() {
+        Some(j) => format!("m{} c{}", info.module + 1, j + 1),
+        None => info.label.to_string(),
+    }
 }
 
 /// The zoom on a final state: its mapping and the barrier it annotates.

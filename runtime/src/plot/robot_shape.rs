@@ -84,7 +84,10 @@ impl<'m> Kinematics<'m> {
             .barrier_table()
             .iter()
             .map(|info| match info.kind {
-                BarrierKind::PlateCorner => index(Param::Margin(info.module, info.point)),
+                BarrierKind::PlateCorner => info
+                    .corner()
+                    .and_then(|j| index(Param::Margin(info.module, j))),
+                _ => None,
             })
             .collect();
         Kinematics {
@@ -183,9 +186,10 @@ impl<'m> Kinematics<'m> {
             .barrier_table()
             .iter()
             .zip(&self.margin)
-            .map(|(info, margin)| {
+            .filter_map(|(info, margin)| Some((info.corner()?, info, margin)))
+            .map(|(corner, info, margin)| {
                 let module = &modules[info.module];
-                let phi = module.corner_angles[info.point];
+                let phi = module.corner_angles[corner];
                 let r = module.corner_radius;
                 let local = apply(&segments[info.module], [r * phi.cos(), r * phi.sin(), 0.0]);
                 let base = &poses[info.module];

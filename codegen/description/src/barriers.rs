@@ -1,0 +1,412 @@
+//! The barriers a robot declares beyond its plate corners (paper §II-C, docs/model.md §3):
+//! elongation and bend limits per module, and obstacles that chosen points must avoid.
+//!
+//! Which barriers exist is structure (code is generated for them); where an obstacle sits,
+//! a limit's value and a margin are numbers (parameters read at run time). [`barrier_list`]
+//! is the one definition of the barriers of a structure and their order: code generation
+//! emits them in this order, and the runtime reads each barrier's numbers through it.
+
+use std::fmt;
+
+/// What a barrier keeps apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BarrierKind {
+    /// A corner of a module's top plate above the plane of its bottom plate:
+    /// `b = c_ij − ε_ij` \[m\].
+    PlateCorner,
+    /// A module's elongation above its lower limit: `b = δL − (δL_min + ε)` \[m\].
+    ElongationMin,
+    /// A module's elongation below its upper limit: `b = (δL_max − ε) − δL` \[m\].
+    ElongationMax,
+    /// A module's bend below its limit, smooth at `θ = 0`:
+    /// `b = (θ_b² − θ²) / (2 θ_b)` with `θ_b = θ_max − ε` \[rad\].
+    Bend,
+    /// A point on one side of a plane: `b = n·x − o − ε` \[m\].
+    HalfSpace,
+    /// A point outside a sphere: `b = |x − c| − ρ − ε` \[m\].
+    Sphere,
+}
+
+/// The groups the reports show a robot's barriers in, in this order.
+pub const KIND_GROUPS: [KindGroup; 4] = [
+    KindGroup::PlateCorner,
+    KindGroup::Elongation,
+    KindGroup::Bend,
+    KindGroup::Obstacle,
+];
+
+/// How the reports group barriers: one lowest value per group, one figure panel per group.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum KindGroup {
+    /// Plate-corner self-contact barriers.
+    PlateCorner,
+    /// Elongation limits, both sides.
+    Elongation,
+    /// Bend limits.
+    Bend,
+    /// Environment barriers: half-spaces and spheres.
+    Obstacle,
+}
+
+impl KindGroup {
+    /// A name for reports and JSON keys: `plate_corner`, `elongation`, `bend`, `obstacle`.
+    pub fn key(self) -> &'static str {
+        match self {
+            KindGroup::PlateCorner => "plate_corner",
+            KindGroup::Elongation => "elongation",
+            KindGroup::Bend => "bend",
+            KindGroup::Obstacle => "obstacle",
+        }
+    }
+
+    /// A title for figures: `plate corners`, `elongation limits`, …
+    pub fn title(self) -> &'static str {
+        match self {
+            KindGroup::PlateCorner => "plate corners",
+            KindGroup::Elongation => "elongation limits",
+            KindGroup::Bend => "bend limits",
+            KindGroup::Obstacle => "obstacles",
+        }
+    }
+
+    /// The unit of this group's barrier values: `m`, or `rad` for bends.
+    pub fn unit(self) -> &'static str {
+        match self {
+            KindGroup::Bend => "rad",
+            _ => "m",
+        }
+    }
+}
+
+impl BarrierKind {
+    /// The variant's name, as generated code spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            BarrierKind::PlateCorner => "PlateCorner",
+            BarrierKind::ElongationMin => "ElongationMin",
+            BarrierKind::ElongationMax => "ElongationMax",
+            BarrierKind::Bend => "Bend",
+            BarrierKind::HalfSpace => "HalfSpace",
+            BarrierKind::Sphere => "Sphere",
+        }
+    }
+
+    /// The name in JSON and robot files: `plate_corner`, `elongation_min`, `elongation_max`,
+    /// `bend`, `half_space`, `sphere`.
+    pub fn key(self) -> &'static str {
+        match self {
+            BarrierKind::PlateCorner => "plate_corner",
+            BarrierKind::ElongationMin => "elongation_min",
+            BarrierKind::ElongationMax => "elongation_max",
+            BarrierKind::Bend => "bend",
+            BarrierKind::HalfSpace => "half_space",
+            BarrierKind::Sphere => "sphere",
+        }
+    }
+
+    /// The group the reports show it in.
+    pub fn group(self) -> KindGroup {
+        match self {
+            BarrierKind::PlateCorner => KindGroup::PlateCorner,
+            BarrierKind::ElongationMin | BarrierKind::ElongationMax => KindGroup::Elongation,
+            BarrierKind::Bend => KindGroup::Bend,
+            BarrierKind::HalfSpace | BarrierKind::Sphere => KindGroup::Obstacle,
+        }
+    }
+
+    /// The unit of its value: `m`, or `rad` for a bend limit.
+    pub fn unit(self) -> &'static str {
+        self.group().unit()
+    }
+}
+
+/// A point a barrier watches, on the module the barrier belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Point {
+    /// Corner `j` (0-based) of the module's top plate.
+    Corner(usize),
+    /// The centre (origin) of the module's top plate.
+    Centre,
+    /// A point fixed in the top plate's frame, listed in the robot file: entry `k` (0-based)
+    /// of its obstacle's watched points ([`Obstacle::watch`]).
+    Listed(usize),
+    /// A point on the module's soft backbone at an arc fraction `s ∈ (0, 1]`: entry `k`
+    /// (0-based) of its obstacle's watched points.
+    Arc(usize),
+}
+
+/// The shape of a watched point, without its numbers: what code generation needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PointShape {
+    /// Corner `j` (0-based) of the top plate.
+    Corner(usize),
+    /// The top plate's centre.
+    Centre,
+    /// A point fixed in the top plate's frame (its coordinates are parameters).
+    Listed,
+    /// A point on the backbone (its arc fraction is a parameter).
+    Arc,
+}
+
+/// What kind of region an obstacle is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ObstacleKind {
+    /// The allowed side of a plane.
+    HalfSpace,
+    /// The outside of a sphere.
+    Sphere,
+}
+
+impl ObstacleKind {
+    /// The barrier kind of its watched points.
+    pub fn barrier_kind(self) -> BarrierKind {
+        match self {
+            ObstacleKind::HalfSpace => BarrierKind::HalfSpace,
+            ObstacleKind::Sphere => BarrierKind::Sphere,
+        }
+    }
+
+    /// As robot files write it: `half-space`, `sphere`.
+    pub fn written(self) -> &'static str {
+        match self {
+            ObstacleKind::HalfSpace => "half-space",
+            ObstacleKind::Sphere => "sphere",
+        }
+    }
+}
+
+/// Which limit barriers a module has (structure).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct LimitFlags {
+    /// `δL_min ≤ δL ≤ δL_max`: two barriers.
+    pub elongation: bool,
+    /// `θ ≤ θ_max`: one barrier.
+    pub bend: bool,
+}
+
+/// The structure of one obstacle: its kind and the points it watches, `(module, point)`
+/// with the module 0-based.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct ObstacleStructure {
+    /// Half-space or sphere.
+    pub kind: ObstacleKind,
+    /// Watched points in file order: the module (0-based) and the point's shape.
+    pub watch: Vec<(usize, PointShape)>,
+}
+
+/// The limits of one module, resolved (`[module.limits]` over the file's `[limits]`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Limits {
+    /// `[δL_min, δL_max]` \[m\], if limited.
+    pub elongation: Option<[f64; 2]>,
+    /// Margin `ε` of both elongation barriers \[m\].
+    pub elongation_margin: f64,
+    /// `θ_max` \[rad\], if limited.
+    pub max_bend: Option<f64>,
+    /// Margin `ε` of the bend barrier \[rad\].
+    pub bend_margin: f64,
+    /// The class-K gains `[p1, p2]` of these barriers \[1/s\], each `None` when not given
+    /// (the run's barrier gains then apply).
+    pub gains: [Option<f64>; 2],
+}
+
+impl Limits {
+    /// Which barriers these limits make.
+    pub fn flags(&self) -> LimitFlags {
+        LimitFlags {
+            elongation: self.elongation.is_some(),
+            bend: self.max_bend.is_some(),
+        }
+    }
+}
+
+/// An obstacle's region, in world (= base) coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shape {
+    /// `n·x ≥ o`: the allowed side of the plane with unit normal `n` (pointing into the
+    /// allowed side) at offset `o` \[m\].
+    HalfSpace {
+        /// Unit normal.
+        normal: [f64; 3],
+        /// `o` \[m\].
+        offset: f64,
+    },
+    /// `|x − c| ≥ ρ`: the outside of a sphere.
+    Sphere {
+        /// `c` \[m\].
+        center: [f64; 3],
+        /// `ρ` \[m\].
+        radius: f64,
+    },
+}
+
+impl Shape {
+    /// The kind of region.
+    pub fn kind(&self) -> ObstacleKind {
+        match self {
+            Shape::HalfSpace { .. } => ObstacleKind::HalfSpace,
+            Shape::Sphere { .. } => ObstacleKind::Sphere,
+        }
+    }
+}
+
+/// A watched point with its numbers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum WatchedPoint {
+    /// Corner `j` (0-based) of the module's top plate.
+    Corner(usize),
+    /// The top plate's centre.
+    Centre,
+    /// A point in the top plate's frame \[m\].
+    Listed([f64; 3]),
+    /// A point on the backbone at arc fraction `s ∈ (0, 1]`.
+    Arc(f64),
+}
+
+impl WatchedPoint {
+    /// Its shape without numbers.
+    pub fn shape(&self) -> PointShape {
+        match *self {
+            WatchedPoint::Corner(j) => PointShape::Corner(j),
+            WatchedPoint::Centre => PointShape::Centre,
+            WatchedPoint::Listed(_) => PointShape::Listed,
+            WatchedPoint::Arc(_) => PointShape::Arc,
+        }
+    }
+}
+
+/// One watched point of an obstacle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Watched {
+    /// The module (0-based) whose plate or backbone carries the point.
+    pub module: usize,
+    /// The point.
+    pub point: WatchedPoint,
+}
+
+/// An obstacle of a robot file (`[[obstacle]]`): a region the watched points stay out of.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Obstacle {
+    /// The region.
+    pub shape: Shape,
+    /// Margin `ε` \[m\].
+    pub margin: f64,
+    /// Class-K gains `[p1, p2]` \[1/s\], each `None` when not given.
+    pub gains: [Option<f64>; 2],
+    /// The points it watches, one barrier each, in file order.
+    pub watch: Vec<Watched>,
+}
+
+impl Obstacle {
+    /// Its structure (kind and watched point shapes).
+    pub fn structure(&self) -> ObstacleStructure {
+        ObstacleStructure {
+            kind: self.shape.kind(),
+            watch: self
+                .watch
+                .iter()
+                .map(|w| (w.module, w.point.shape()))
+                .collect(),
+        }
+    }
+}
+
+/// One barrier of a structure: what it is and where it sits.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BarrierSpec {
+    /// What it keeps apart.
+    pub kind: BarrierKind,
+    /// The module it belongs to (0-based): its value depends on this module's coordinates
+    /// and those below it only.
+    pub module: usize,
+    /// The watched point, for corner and environment barriers.
+    pub point: Option<Point>,
+    /// The obstacle (0-based, file order), for environment barriers.
+    pub obstacle: Option<usize>,
+    /// A short stable name, 1-based: `module 1 corner 3`, `module 2 elongation max`,
+    /// `module 1 bend`, `obstacle 1 module 2 corner 4`, `obstacle 2 module 1 arc 1`.
+    pub label: String,
+}
+
+/// Every barrier of `structure`, in the order of the generated arrays: the plate corners
+/// (module by module, corner by corner), then each module's limits (elongation min, max,
+/// bend), then each obstacle's watched points in file order.
+pub fn barrier_list(structure: &crate::Structure) -> Vec<BarrierSpec> {
+    let mut list = Vec::new();
+    for (i, &corners) in structure.corners.iter().enumerate() {
+        for j in 0..corners {
+            list.push(BarrierSpec {
+                kind: BarrierKind::PlateCorner,
+                module: i,
+                point: Some(Point::Corner(j)),
+                obstacle: None,
+                label: format!("module {} corner {}", i + 1, j + 1),
+            });
+        }
+    }
+    for (i, flags) in structure.limits.iter().enumerate() {
+        let limit = |kind, what: &str| BarrierSpec {
+            kind,
+            module: i,
+            point: None,
+            obstacle: None,
+            label: format!("module {} {what}", i + 1),
+        };
+        if flags.elongation {
+            list.push(limit(BarrierKind::ElongationMin, "elongation min"));
+            list.push(limit(BarrierKind::ElongationMax, "elongation max"));
+        }
+        if flags.bend {
+            list.push(limit(BarrierKind::Bend, "bend"));
+        }
+    }
+    for (o, obstacle) in structure.obstacles.iter().enumerate() {
+        // Listed points and arc points are numbered per module, from 1, for the labels.
+        let mut listed = vec![0usize; structure.corners.len()];
+        let mut arcs = vec![0usize; structure.corners.len()];
+        for (k, &(module, shape)) in obstacle.watch.iter().enumerate() {
+            let (point, name) = match shape {
+                PointShape::Corner(j) => (Point::Corner(j), format!("corner {}", j + 1)),
+                PointShape::Centre => (Point::Centre, "centre".to_string()),
+                PointShape::Listed => {
+                    let n = bump(&mut listed, module);
+                    (Point::Listed(k), format!("point {n}"))
+                }
+                PointShape::Arc => {
+                    let n = bump(&mut arcs, module);
+                    (Point::Arc(k), format!("arc {n}"))
+                }
+            };
+            list.push(BarrierSpec {
+                kind: obstacle.kind.barrier_kind(),
+                module,
+                point: Some(point),
+                obstacle: Some(o),
+                label: format!("obstacle {} module {} {name}", o + 1, module + 1),
+            });
+        }
+    }
+    list
+}
+
+/// Increments the counter of `module` (if it exists) and returns its new value.
+fn bump(counters: &mut [usize], module: usize) -> usize {
+    match counters.get_mut(module) {
+        Some(n) => {
+            *n += 1;
+            *n
+        }
+        None => 0,
+    }
+}
+
+impl fmt::Display for PointShape {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PointShape::Corner(j) => write!(f, "corner {}", j + 1),
+            PointShape::Centre => f.write_str("centre"),
+            PointShape::Listed => f.write_str("point"),
+            PointShape::Arc => f.write_str("arc"),
+        }
+    }
+}
