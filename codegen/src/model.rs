@@ -827,6 +827,17 @@ impl SymbolicModel {
              // Operations per call (add, mul, div, sqrt/trig, analytic):\n",
             self.structure.corners, self.structure.tendons, self.structure.routing
         );
+        if self.structure.has_extra_barriers() {
+            let at = header.find("// Operations").unwrap_or(header.len());
+            header.insert_str(
+                at,
+                &format!(
+                    "// Barriers: {} ({}).\n",
+                    self.barriers.len(),
+                    crate::registry::describe(&self.structure)
+                ),
+            );
+        }
         for (name, count) in &ops {
             header.push_str(&format!(
                 "//   {name}: {} ({}, {}, {}, {}, {})\n",

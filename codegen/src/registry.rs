@@ -232,12 +232,32 @@ pub fn describe(structure: &Structure) -> String {
         Routing::Through => "through",
     };
     let n = structure.modules();
-    format!(
+    let mut text = format!(
         "{n} module{}, corners {:?}, tendons {:?}, {routing} routing",
         if n == 1 { "" } else { "s" },
         structure.corners,
         structure.tendons
-    )
+    );
+    if structure.has_extra_barriers() {
+        let limits: usize = structure
+            .limits
+            .iter()
+            .map(|f| 2 * usize::from(f.elongation) + usize::from(f.bend))
+            .sum();
+        let watched: usize = structure.obstacles.iter().map(|o| o.watch.len()).sum();
+        text.push_str(&format!(
+            ", {limits} limit barrier{}, {} obstacle{} watching {watched} point{}",
+            if limits == 1 { "" } else { "s" },
+            structure.obstacles.len(),
+            if structure.obstacles.len() == 1 {
+                ""
+            } else {
+                "s"
+            },
+            if watched == 1 { "" } else { "s" },
+        ));
+    }
+    text
 }
 
 /// What [`add`] did.

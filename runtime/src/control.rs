@@ -26,7 +26,8 @@ pub struct ControllerSettings {
     pub kp: Vec<f64>,
     /// `K_D`, row-major `nq × nq` \[N·s/m\]. Paper: `1·I`.
     pub kd: Vec<f64>,
-    /// HOCBF class-K gains `[p1, p2]` \[1/s\]. Default: the robot file's `[barrier]` gains.
+    /// HOCBF class-K gains `[p1, p2]` \[1/s\] of every barrier whose own table gives none
+    /// (`Model::own_barrier_gains`). Default: the robot file's `[barrier]` gains.
     pub barrier_gains: [f64; 2],
     /// Run the safety filter (`false`: plain PD+, `τ = τ_nom`). Default `true`.
     pub filter: bool,
@@ -176,8 +177,9 @@ pub enum InvalidState {
     MassMatrix,
     /// The model produced a non-finite barrier, torque or row.
     NonFiniteModel,
-    /// `q` or `q̇` lies outside the model's domain (a bend beyond three quarters of a turn, an
-    /// elongation beyond ten rest lengths, a speed above 100 m/s:
+    /// `q` or `q̇` lies outside the model's domain (a bend beyond three quarters of a turn, a
+    /// backbone length `L0 + δL ≤ 0`, an elongation beyond ten rest lengths, a speed above
+    /// 100 m/s:
     /// `softcbf_description::domain`), where the model describes no robot.
     OutOfDomain,
 }
@@ -202,6 +204,11 @@ pub struct Controller {
     tau_nom: Vec<f64>,
     tau: Vec<f64>,
     qp: SafetyQp,
+    /// `[p1, p2]` of each barrier: its own, else the settings'.
+    barrier_gains: Vec<[f64; 2]>,
+    /// The factor every barrier's gains are used with (1 but for a loop slower than its
+    /// nominal rate).
+    gain_scale: f64,
 }
 
 impl Controller {
@@ -216,6 +223,13 @@ impl Controller {
         constraint_rows[nb * nq..].copy_from_slice(limit_rows);
         let mut constraint_rhs = vec![0.0; rows];
         constraint_rhs[nb..].copy_from_slice(limit_rhs);
+        let [p1, p2] = settings.barrier_gains;
+        let barrier_gains = (0..nb)
+            .map(|k| {
+                let [own1, own2] = model.own_barrier_gains.get(k).copied().unwrap_or_default();
+                [own1.unwrap_or(p1), own2.unwrap_or(p2)]
+            })
+            .collect();
         Ok(Controller {
             settings,
             nq,
@@ -231,6 +245,8 @@ impl Controller {
             tau_nom: vec![0.0; nq],
             tau: vec![0.0; nq],
             qp,
+            barrier_gains,
+            gain_scale: 1.0,
         })
     }
 
@@ -244,15 +260,22 @@ impl Controller {
         self.settings.filter = on;
     }
 
-    /// Changes the HOCBF class-K gains `[p1, p2]` \[1/s\] (e.g. scaled to a loop's achieved
-    /// period). Gains that are not finite and > 0 are refused (`false`) and the previous
-    /// ones kept.
-    pub fn set_barrier_gains(&mut self, gains: [f64; 2]) -> bool {
-        let valid = gains.iter().all(|p| p.is_finite() && *p > 0.0);
+    /// Scales every barrier's HOCBF class-K gains by `scale` (e.g. to a loop's achieved
+    /// period: `nominal / achieved`), relative to the gains the controller was built with.
+    /// A scale that is not finite and > 0 is refused (`false`) and the previous one kept.
+    pub fn set_barrier_gain_scale(&mut self, scale: f64) -> bool {
+        let valid = scale.is_finite() && scale > 0.0;
         if valid {
-            self.settings.barrier_gains = gains;
+            self.gain_scale = scale;
         }
         valid
+    }
+
+    /// The class-K gains `[p1, p2]` \[1/s\] barrier `k` is used with now (its own, else the
+    /// settings', times the gain scale).
+    pub fn barrier_gains(&self, k: usize) -> Option<[f64; 2]> {
+        let [p1, p2] = *self.barrier_gains.get(k)?;
+        Some([p1 * self.gain_scale, p2 * self.gain_scale])
     }
 
     /// Changes the hold period `Δ` \[s\] of the hold correction (`0`: the paper's rows), for
@@ -440,8 +463,8 @@ pub fn tick(
     // Rows A_k = J_k M⁻¹ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k
     // (with the hold correction: S⁻¹ for M⁻¹ and n + Δ K q̇ for n).
     // A barrier depends on few coordinates (its module's), so zero entries of J are skipped.
-    let [p1, p2] = settings.barrier_gains;
     let hold = settings.hold_correction;
+    let scale = controller.gain_scale;
     let factor = if hold > 0.0 {
         // S = M + Δ D + Δ² K, and n + Δ K q̇ (K, D diagonal).
         controller.hold_factor.copy_from_slice(&ws.mass_matrix);
@@ -465,6 +488,7 @@ pub fn tick(
         &mut controller.scratch,
     );
     for k in 0..controller.nb {
+        let [p1, p2] = controller.barrier_gains[k].map(|p| p * scale);
         let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
         let row = &mut controller.rows[k * nq..(k + 1) * nq];
         row.fill(0.0);

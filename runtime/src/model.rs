@@ -3,7 +3,7 @@
 
 use softcbf_description::layout::{pack_params, param_layout};
 use softcbf_description::robot::{Robot, Routing};
-use softcbf_generated::GeneratedModel;
+use softcbf_generated::{GeneratedModel, KindGroup};
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -52,6 +52,10 @@ pub struct Model {
     pub stiffness: Vec<f64>,
     /// Diagonal of `D`: `βθ/d², βθ/d², βL` per module.
     pub damping: Vec<f64>,
+    /// The class-K gains `[p1, p2]` \[1/s\] a barrier's own table gives (a module's
+    /// `[limits]`, an `[[obstacle]]`), in barrier order; `None` where the run's barrier
+    /// gains apply (always for the plate corners).
+    pub own_barrier_gains: Vec<[Option<f64>; 2]>,
 }
 
 fn routing_name(routing: Routing) -> &'static str {
@@ -112,6 +116,20 @@ impl Model {
                 m.axial_damping,
             ]);
         }
+        let own_barrier_gains = generated
+            .barrier_table()
+            .iter()
+            .map(|info| match (info.kind.group(), info.obstacle) {
+                (KindGroup::Elongation | KindGroup::Bend, _) => robot
+                    .limits
+                    .get(info.module)
+                    .map_or([None, None], |l| l.gains),
+                (KindGroup::Obstacle, Some(o)) => {
+                    robot.obstacles.get(o).map_or([None, None], |ob| ob.gains)
+                }
+                _ => [None, None],
+            })
+            .collect();
         Ok(Model {
             robot,
             generated,
@@ -119,6 +137,7 @@ impl Model {
             inertias,
             stiffness,
             damping,
+            own_barrier_gains,
         })
     }
 

@@ -163,7 +163,8 @@ fn extreme_robot(modules: usize, corners: &str, pick: Pick, rng: &mut TestRng) -
 
 /// States at the corners of the domain of `robot`: each module bent by (just under) the
 /// largest bend in one of several directions, or straight, or barely bent (the small-θ
-/// series), elongated or compressed by ten rest lengths; velocities at ±100 m/s.
+/// series), elongated by ten rest lengths or compressed to a millionth of its rest length;
+/// velocities at ±100 m/s.
 fn corner_states(robot: &Robot, rng: &mut TestRng, count: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
     let mut states = Vec::new();
     for k in 0..count {
@@ -178,7 +179,8 @@ fn corner_states(robot: &Robot, rng: &mut TestRng, count: usize) -> Vec<(Vec<f64
                 _ => [1e-9 * module.tendon_radius, 0.0],
             };
             let stretch = domain::MAX_ELONGATION_RATIO * module.rest_length;
-            let elongation = [stretch, -stretch, 0.0][rng.random_range(0..3)];
+            let squeeze = -(1.0 - 1e-6) * module.rest_length;
+            let elongation = [stretch, squeeze, 0.0][rng.random_range(0..3)];
             q.extend([bend[0], bend[1], elongation]);
             for _ in 0..3 {
                 qd.push([domain::MAX_SPEED, -domain::MAX_SPEED, 0.0][rng.random_range(0..3)]);
@@ -350,8 +352,9 @@ fn the_shortest_blend_between_far_corners_stays_finite() {
     let d = model.robot.modules[0].tendon_radius;
     let bend = domain::MAX_BEND_RAD * d * (1.0 - 1e-12);
     let stretch = domain::MAX_ELONGATION_RATIO * model.robot.modules[0].rest_length;
-    let a = [bend, 0.0, stretch, 0.0, -bend, -stretch];
-    let b = [-bend, 0.0, -stretch, 0.0, bend, stretch];
+    let squeeze = -(1.0 - 1e-6) * model.robot.modules[0].rest_length;
+    let a = [bend, 0.0, stretch, 0.0, -bend, squeeze];
+    let b = [-bend, 0.0, squeeze, 0.0, bend, stretch];
     let list = |q: &[f64]| {
         let items: Vec<String> = q.iter().map(|x| format!("{x:e}")).collect();
         items.join(", ")

@@ -1,6 +1,7 @@
 //! The state domain of a model: the coordinates and velocities it describes (a bend of at
-//! most three quarters of a turn, an elongation within ten rest lengths, speeds within
-//! 100 m/s), and the problem of a state outside it, located in a file when one gave it.
+//! most three quarters of a turn, a positive backbone length `L0 + δL` up to eleven rest
+//! lengths, speeds within 100 m/s), and the problem of a state outside it, located in a
+//! file when one gave it.
 
 use std::f64::consts::PI;
 use std::fmt;
@@ -49,7 +50,16 @@ pub enum StateProblem {
         /// The largest `√(Δx² + Δy²)` allowed, `MAX_BEND_RAD · d` \[m\].
         max: f64,
     },
-    /// `|δL|` exceeds [`MAX_ELONGATION_RATIO`] rest lengths.
+    /// The backbone length `L0 + δL` is zero or negative: no segment is that short.
+    NonPositiveLength {
+        /// The module (from 1).
+        module: usize,
+        /// `δL` \[m\].
+        value: f64,
+        /// `L0` \[m\].
+        rest_length: f64,
+    },
+    /// `δL` exceeds [`MAX_ELONGATION_RATIO`] rest lengths.
     Elongation {
         /// The module (from 1).
         module: usize,
@@ -77,7 +87,8 @@ impl StateProblem {
                 Some(index)
             }
             StateProblem::Bend { module, .. } => Some((3 * module).saturating_sub(2)),
-            StateProblem::Elongation { module, .. } => Some(3 * module),
+            StateProblem::Elongation { module, .. }
+            | StateProblem::NonPositiveLength { module, .. } => Some(3 * module),
         }
     }
 }
@@ -101,9 +112,21 @@ impl fmt::Display for StateProblem {
             ),
             StateProblem::Elongation { module, value, max } => write!(
                 f,
-                "entry {} (δL of module {module}) is {value:e} m; |δL| must be ≤ {max} m, \
+                "entry {} (δL of module {module}) is {value:e} m; δL must be ≤ {max} m, \
                  {MAX_ELONGATION_RATIO} rest lengths",
                 3 * module
+            ),
+            StateProblem::NonPositiveLength {
+                module,
+                value,
+                rest_length,
+            } => write!(
+                f,
+                "entry {} (δL of module {module}) is {value} m: the backbone length L0 + δL = \
+                 {} m is not positive (L0 = {rest_length} m); δL must be > {} m",
+                3 * module,
+                crate::limits::short(rest_length + value),
+                crate::limits::short(-rest_length)
             ),
             StateProblem::Speed { index, value } => write!(
                 f,
@@ -145,8 +168,15 @@ pub fn modules_coordinates_problem(modules: &[Module], q: &[f64]) -> Option<Stat
                 max,
             });
         }
+        if module.rest_length + q[2] <= 0.0 {
+            return Some(StateProblem::NonPositiveLength {
+                module: i + 1,
+                value: q[2],
+                rest_length: module.rest_length,
+            });
+        }
         let max = MAX_ELONGATION_RATIO * module.rest_length;
-        if q[2].abs() > max {
+        if q[2] > max {
             return Some(StateProblem::Elongation {
                 module: i + 1,
                 value: q[2],
@@ -246,13 +276,25 @@ mod tests {
             Some(StateProblem::Bend { module: 2, .. })
         ));
         q[3] = 0.0;
-        q[2] = -1.01;
+        q[2] = 1.01;
         let problem = coordinates_problem(&robot, &q).unwrap();
         assert!(matches!(
             problem,
             StateProblem::Elongation { module: 1, .. }
         ));
         assert!(problem.to_string().contains("entry 3"), "{problem}");
+        // A backbone of zero or negative length: L0 = 0.1 m.
+        q[2] = -0.0999;
+        assert_eq!(coordinates_problem(&robot, &q), None);
+        for dl in [-0.1, -0.2, -1.01] {
+            q[2] = dl;
+            let problem = coordinates_problem(&robot, &q).unwrap();
+            assert!(
+                matches!(problem, StateProblem::NonPositiveLength { module: 1, .. }),
+                "{problem:?}"
+            );
+            assert!(problem.to_string().contains("not positive"), "{problem}");
+        }
         q[2] = 1e308;
         assert!(coordinates_problem(&robot, &q).is_some());
         q[2] = f64::NAN;

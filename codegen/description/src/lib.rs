@@ -15,6 +15,7 @@
 //! assert_eq!(softcbf_description::layout::pack_params(&robot).len(), 2 * (3 + 6 * 3));
 //! ```
 
+mod barrier_tables;
 pub mod barriers;
 pub mod domain;
 pub mod gains;

@@ -169,6 +169,29 @@ pub const GRAVITY_M_S2: Limit = Limit::closed(-100.0, 100.0, "m/s²");
 /// 1e4 1/s a barrier would be corrected within 0.1 ms, faster than any actuator.
 pub const BARRIER_GAIN_PER_S: Limit = Limit::above(0.0, 1e4, "1/s");
 
+/// An elongation limit `δL_min` or `δL_max` \[m\] (`[limits] elongation`): within the
+/// model's domain of ten rest lengths of at most 10 m; the robot file also needs
+/// `L0 + δL_min > 0` (a positive backbone length) and `δL_max ≤ 10 L0`.
+pub const ELONGATION_LIMIT_M: Limit = Limit::closed(-100.0, 100.0, "m");
+/// A bend limit `θ_max` \[deg\] (`[limits] max_bend_deg`): up to three quarters of a turn,
+/// the model's domain (`crate::domain::MAX_BEND_RAD`).
+pub const MAX_BEND_DEG: Limit = Limit::above(0.0, 270.0, "°");
+/// The margin of a bend limit \[deg\]; it must also stay below the limit itself.
+pub const BEND_MARGIN_DEG: Limit = Limit::closed(0.0, 270.0, "°");
+/// A coordinate of an obstacle in the world \[m\] (a sphere's centre, a plane's offset):
+/// 100 m is far beyond any soft robot's reach.
+pub const POSITION_M: Limit = Limit::closed(-100.0, 100.0, "m");
+/// A sphere obstacle's radius \[m\]: positive, at most 100 m.
+pub const OBSTACLE_RADIUS_M: Limit = Limit::above(0.0, 100.0, "m");
+/// A component of a half-space's normal (any length; it is normalized, and must not be
+/// zero).
+pub const NORMAL_COMPONENT: Limit = Limit::closed(-1e6, 1e6, "");
+/// A coordinate of a watched point in its plate's frame \[m\]: within the largest module.
+pub const PLATE_POINT_M: Limit = Limit::closed(-10.0, 10.0, "m");
+/// The arc fraction `s` of a watched backbone point: `0 < s ≤ 1` (1 is the top plate's
+/// origin; the base itself never moves).
+pub const ARC_FRACTION: Limit = Limit::above(0.0, 1.0, "");
+
 // ---------------------------------------------------------------------------------------
 // The scenario file (with DURATION_S below).
 

@@ -82,6 +82,8 @@ macro_rules! module_fields {
         #[serde(deny_unknown_fields)]
         pub(crate) struct ModuleTable {
             $( #[serde(rename = $key)] $name: Option<Spanned<$raw>>, )*
+            /// `[module.limits]`: this module's limits over the file's `[limits]`.
+            pub(crate) limits: Option<Spanned<crate::barrier_tables::LimitsTable>>,
         }
 
         /// The fields written in one table, each checked on its own; `None` where not

@@ -17,6 +17,7 @@ use serde::Deserialize;
 use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
+use crate::barrier_tables::{LimitsTable, ObstacleTable};
 use crate::barriers::{LimitFlags, Limits, Obstacle, ObstacleStructure};
 use crate::gains::RawGain;
 use crate::limits;
@@ -203,6 +204,8 @@ struct RobotFile {
     gains: Option<GainsTable>,
     defaults: Option<ModuleTable>,
     module: Option<Spanned<Vec<ModuleTable>>>,
+    limits: Option<LimitsTable>,
+    obstacle: Option<Vec<ObstacleTable>>,
     modules: Option<Spanned<Count>>,
     /// Any table: its fields are the hardware path's to read.
     hardware: Option<Spanned<toml::Table>>,
@@ -284,6 +287,13 @@ impl Checker<'_> {
             Some(d) => self.written(d, "defaults")?,
             None => Written::default(),
         };
+        if let Some(limits) = file.defaults.as_ref().and_then(|d| d.limits.as_ref()) {
+            return Err(self.invalid(
+                &limits.span(),
+                "defaults.limits",
+                "every module's limits are written [limits], at the top level of the file".into(),
+            ));
+        }
         let default_tables;
         let tables: &[ModuleTable] = match (&file.module, &file.modules) {
             (Some(_), Some(n)) => {
@@ -326,6 +336,9 @@ impl Checker<'_> {
             let own = self.written(table, &prefix)?;
             modules.push(self.resolve(&own, &defaults, &prefix)?);
         }
+        let module_limits: Vec<_> = tables.iter().map(|t| t.limits.as_ref()).collect();
+        let limits = self.limits(file.limits.as_ref(), &module_limits, &modules)?;
+        let obstacles = self.obstacles(file.obstacle.as_deref().unwrap_or_default(), &modules)?;
         let nq = 3 * modules.len();
         let mut gains = FileGains::default();
         if let Some(table) = &file.gains {
@@ -345,8 +358,8 @@ impl Checker<'_> {
             barrier,
             gains,
             routing: file.routing.unwrap_or(Routing::Local),
-            limits: vec![Limits::default(); modules.len()],
-            obstacles: Vec::new(),
+            limits,
+            obstacles,
             modules,
             hardware: file.hardware.map(|table| HardwareTable {
                 text: Arc::from(self.text),

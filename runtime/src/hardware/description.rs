@@ -773,9 +773,9 @@ mod tests {
         assert_eq!(hw.modules[0].pulley_radius, 1.0);
     }
 
-    /// The set point lies in the state domain of the robot: bends of at most 1.5π,
-    /// elongations of at most ten rest lengths (the default module: `d` = 0.04 m,
-    /// `L0` = 0.1 m).
+    /// The set point lies in the state domain of the robot: bends of at most 1.5π, a
+    /// positive backbone length, elongations of at most ten rest lengths (the default
+    /// module: `d` = 0.04 m, `L0` = 0.1 m).
     #[test]
     fn set_point_lies_in_the_state_domain() {
         assert_invalid(
@@ -785,10 +785,16 @@ mod tests {
             "module 1 bends by",
         );
         assert_invalid(
-            &format!("set_point = [0,\n 0,\n -1.5]\n{MODULE}"),
+            &format!("set_point = [0,\n 0,\n 1.5]\n{MODULE}"),
             5,
             "hardware.set_point",
-            "entry 3 (δL of module 1) is -1.5e0 m; |δL| must be ≤ 1 m",
+            "entry 3 (δL of module 1) is 1.5e0 m; δL must be ≤ 1 m",
+        );
+        assert_invalid(
+            &format!("set_point = [0,\n 0,\n -0.15]\n{MODULE}"),
+            5,
+            "hardware.set_point",
+            "entry 3 (δL of module 1) is -0.15 m: the backbone length L0 + δL = -0.05",
         );
         assert_invalid(
             &format!("set_point = [0, inf, 0]\n{MODULE}"),

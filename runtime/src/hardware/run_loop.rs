@@ -327,7 +327,6 @@ fn control_loop<P: ServoPort>(
     let baud = hardware.baud;
     let period = Duration::from_secs_f64(1.0 / settings.rate);
     let nominal = period.as_secs_f64();
-    let barrier_gains = controller.settings().barrier_gains;
     let write_wire = wire_time(14 + 3 * map.n_servos(), baud).as_secs_f64();
     let barrier_table = model.generated.barrier_table();
     let start = Instant::now();
@@ -404,10 +403,7 @@ fn control_loop<P: ServoPort>(
                 let hold = achieved.max(nominal);
                 timing.hold = hold;
                 timing.gain_scale = nominal / hold;
-                controller.set_barrier_gains([
-                    barrier_gains[0] * timing.gain_scale,
-                    barrier_gains[1] * timing.gain_scale,
-                ]);
+                controller.set_barrier_gain_scale(timing.gain_scale);
                 if map.hardware().hold_correction {
                     controller.set_hold_correction(hold);
                 }
