@@ -730,10 +730,15 @@ mod tests {
             "x.toml:3: field `reference.waypoints[2].q`: entry 3 (δL of module 1)",
         );
         let scenario = resolve(&format!(
-            "{REFERENCE}[initial]\nq = [0.108, 0.144, 1, 0, 0, -1]\nqd = [100, -100, 0, 0, 0, 0]\n"
+            "{REFERENCE}[initial]\nq = [0.108, 0.144, 1, 0, 0, -0.0999]\nqd = [100, -100, 0, 0, 0, 0]\n"
         ))
         .unwrap();
-        assert_eq!(scenario.initial_q, [0.108, 0.144, 1.0, 0.0, 0.0, -1.0]);
+        assert_eq!(scenario.initial_q, [0.108, 0.144, 1.0, 0.0, 0.0, -0.0999]);
+        refused(
+            &format!("{REFERENCE}[initial]\nq = [0, 0, 0, 0, 0, -0.1]\n"),
+            "x.toml:4: field `initial.q`: entry 6 (δL of module 2) is -0.1 m: the backbone length \
+             L0 + δL = 0 m is not positive",
+        );
     }
 
     #[test]

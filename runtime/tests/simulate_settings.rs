@@ -233,9 +233,13 @@ fn the_summary_records_every_setting_and_the_flags_change_them() {
 #[test]
 fn another_robot_is_named_in_the_one_line_summary() {
     let dir = temp_dir("name");
+    // The paper's set point would compress this robot's 0.06 m modules to a negative length
+    // (δL₂ = −0.07 m): a set point of its own.
     let output = simulate(&[
         "--robot",
         repo("robots/hardware-example.toml").to_str().unwrap(),
+        "--set-point",
+        "0,0,-0.02,0,-0.03,-0.01",
         "--duration",
         "0.05",
         "--no-filter",

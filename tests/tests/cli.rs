@@ -84,18 +84,30 @@ fn parse_vector_rejects_nan_and_infinity() {
 }
 
 /// `--q` lies in the state domain of the paper robot (`d` = 0.04 m, `L0` = 0.1 m): a bend
-/// of at most 1.5π·0.04 = 0.1885 m, an elongation of at most 1 m.
+/// of at most 1.5π·0.04 = 0.1885 m, an elongation of at most 1 m, a positive backbone
+/// length `0.1 m + δL`.
 #[test]
 fn coordinates_lie_in_the_state_domain() {
     let robot = load_robot(None).expect("embedded robot");
-    let q = parse_coordinates("--q", "0.108, 0.144, 1, 0, -0.188, -1", &robot).expect("inside");
-    assert_eq!(q, [0.108, 0.144, 1.0, 0.0, -0.188, -1.0]);
+    let q =
+        parse_coordinates("--q", "0.108, 0.144, 1, 0, -0.188, -0.0999", &robot).expect("inside");
+    assert_eq!(q, [0.108, 0.144, 1.0, 0.0, -0.188, -0.0999]);
     for (text, fragment) in [
         ("1e308,0,0,0,0,0", "--q: module 1 bends by θ = inf rad"),
         ("0,0,0,0.12,0.15,0", "--q: module 2 bends by"),
         (
-            "0,0,0,0,0,-1.5",
-            "--q: entry 6 (δL of module 2) is -1.5e0 m",
+            "0,0,0,0,0,1.5",
+            "--q: entry 6 (δL of module 2) is 1.5e0 m; δL must be ≤ 1 m",
+        ),
+        // The issue's example: a backbone of −0.1 m.
+        (
+            "0,0,-0.2,0,0,0",
+            "--q: entry 3 (δL of module 1) is -0.2 m: the backbone length L0 + δL = -0.1 m is \
+             not positive (L0 = 0.1 m); δL must be > -0.1 m",
+        ),
+        (
+            "0,0,0,0,0,-0.1",
+            "--q: entry 6 (δL of module 2) is -0.1 m: the backbone length L0 + δL = 0 m",
         ),
         (
             "0,0,nan,0,0,0",

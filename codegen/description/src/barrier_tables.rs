@@ -181,7 +181,7 @@ impl Checker<'_> {
                             "module {}: δL_min = {min} m gives a backbone length L0 + δL_min = \
                              {} m ≤ 0 (L0 = {l0} m); δL_min must be > {} m",
                             i + 1,
-                            limits::short(l0 + min),
+                            crate::domain::rounded(l0 + min),
                             limits::short(-l0)
                         ),
                     ));

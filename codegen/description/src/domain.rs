@@ -125,7 +125,7 @@ impl fmt::Display for StateProblem {
                 "entry {} (δL of module {module}) is {value} m: the backbone length L0 + δL = \
                  {} m is not positive (L0 = {rest_length} m); δL must be > {} m",
                 3 * module,
-                crate::limits::short(rest_length + value),
+                rounded(rest_length + value),
                 crate::limits::short(-rest_length)
             ),
             StateProblem::Speed { index, value } => write!(
@@ -134,6 +134,13 @@ impl fmt::Display for StateProblem {
             ),
         }
     }
+}
+
+/// `x` to nine significant digits, in the shortest form (`-0.05`, not
+/// `-0.04999999999999999`): for lengths computed from written ones.
+pub(crate) fn rounded(x: f64) -> String {
+    let nine: f64 = format!("{x:.8e}").parse().unwrap_or(x);
+    crate::limits::short(nine)
 }
 
 /// The first problem of coordinates `q` of `robot` (length, finiteness, bend, elongation),

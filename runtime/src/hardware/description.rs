@@ -531,7 +531,7 @@ mod tests {
         assert_eq!(hw.baud, 1_000_000);
         assert_eq!(hw.baud_register(), 3);
         assert_eq!(hw.servo_ids(), vec![1, 2, 3, 4, 5, 6]);
-        assert_eq!(hw.set_point, vec![0.0, 0.0, -0.15, 0.0, -0.065, 0.0]);
+        assert_eq!(hw.set_point, vec![0.0, 0.0, -0.04, 0.0, -0.065, 0.0]);
         assert_eq!(hw.velocity_source, VelocitySource::Servo);
         assert!((hw.reply_timeout - 0.010).abs() < 1e-15);
         assert_eq!(hw.modules[0].directions, [1.0, -1.0, 1.0]);
@@ -539,8 +539,13 @@ mod tests {
         assert!((hw.modules[0].zero_angles[0] - std::f64::consts::PI).abs() < 1e-15);
         // The zero length defaults to the module's rest length.
         assert_eq!(hw.modules[1].zero_lengths, [0.06; 3]);
-        // The paper's structure: the example reuses the paper-sim model.
-        assert_eq!(robot.structure(), Robot::paper_sim().structure());
+        // The paper's modules, with elongation and bend limits on each.
+        let structure = robot.structure();
+        assert_eq!(
+            (&structure.corners, &structure.tendons),
+            (&vec![6, 6], &vec![3, 3])
+        );
+        assert!(structure.limits.iter().all(|f| f.elongation && f.bend));
     }
 
     #[test]
