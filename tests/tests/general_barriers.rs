@@ -181,10 +181,30 @@ fn an_infeasible_elongation_limit_is_relaxed_and_reported() {
         report.relaxed_rows
     );
     assert!(controller.tau().iter().all(|t| t.is_finite()));
-    // Far from the limit the same controller filters without relaxing.
-    let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    // At rest where the springs carry the plates' weight and the cables' least tension, far
+    // from the limit, the same controller filters without relaxing. (Straight and unloaded,
+    // q = 0, is no such state: the cables only pull down, at f_min at least, so nothing
+    // could stop the light upper plate's fall toward its limit at once.)
+    let hardware = map.hardware();
+    let at_rest = |i: usize| {
+        let weight: f64 = model.robot.modules[i..].iter().map(|m| m.mass * 9.81).sum();
+        let pull = 3.0 * hardware.modules[i].tension_limits[0];
+        -(weight + pull) / model.robot.modules[i].axial_stiffness
+    };
+    let q = [0.0, 0.0, at_rest(0), 0.0, 0.0, at_rest(1)];
+    let reference = Reference {
+        q: &q,
+        qd: &zero,
+        qdd: &zero,
+    };
     let status = tick(&model, &mut controller, &q, &zero, reference);
-    assert_eq!(status, TickStatus::Filtered);
+    assert_eq!(
+        status,
+        TickStatus::Filtered,
+        "{:?} {:?}",
+        controller.qp_report(),
+        controller.constraints().1
+    );
 }
 
 /// A state whose backbone has no length is an invalid state for the tick: the zero
