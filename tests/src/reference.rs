@@ -5,12 +5,18 @@
 //! `N` coordinates, its first and second derivatives along one direction (the velocity
 //! `q̇`), and the derivative of the gradient along that direction. `f_s`, `f_c` come from
 //! `sin`/`cos` of `θ = √u` for `u ≥` [`SERIES_BELOW`] and from their power series below.
+//!
+//! The barriers beyond the plate corners (limits, obstacles on plate and backbone points)
+//! come both as jets ([`all_barriers`]) and as plain values from closed forms in the bend
+//! angle and direction ([`all_barrier_values_closed_form`]); [`arc_point_integrated`]
+//! integrates the backbone's tangent.
 
 use std::f64::consts::PI;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 use std::path::PathBuf;
 
 use rand::RngExt;
+use softcbf_description::barriers::{Shape, WatchedPoint};
 use softcbf_description::robot::{Module, Robot, Routing};
 
 use crate::TestRng;
@@ -633,6 +639,294 @@ pub fn stiffness_and_damping(robot: &Robot) -> (Vec<f64>, Vec<f64>) {
     (stiffness, damping)
 }
 
+// ---------------------------------------------------------------------------------------
+// The barrier kinds beyond the plate corners (limits and obstacles), and the backbone.
+
+/// The point at arc fraction `s` of a segment's backbone, in the segment's base frame, as
+/// jets: the PCC arc up to `s` has bend coordinates `(s a, s b)` and length `s L`, so its
+/// end is `s L (s a f_c, s b f_c, f_s)` at `u = s² (a² + b²)` (`s = 1`: the translation of
+/// [`segment`]).
+pub fn arc_point<const N: usize>(
+    module: &Module,
+    s: f64,
+    dx: Jet<N>,
+    dy: Jet<N>,
+    dl: Jet<N>,
+) -> Vec3<Jet<N>> {
+    let scale = s / module.tendon_radius;
+    let (a, b) = (dx * scale, dy * scale);
+    let (fs, fc) = fs_fc(a * a + b * b);
+    let length = (dl + module.rest_length) * s;
+    [length * a * fc, length * b * fc, length * fs]
+}
+
+/// `sin x / x`, 1 at `x = 0`.
+fn sinc(x: f64) -> f64 {
+    if x == 0.0 { 1.0 } else { x.sin() / x }
+}
+
+/// Bend angle `θ = |(Δx, Δy)| / d` and bend direction `φ = atan2(Δy, Δx)` of a module state.
+pub fn bend_angle_direction(module: &Module, q: [f64; 3]) -> (f64, f64) {
+    (q[0].hypot(q[1]) / module.tendon_radius, q[1].atan2(q[0]))
+}
+
+/// The backbone point at arc fraction `s` in the segment's base frame, in closed form from
+/// the bend angle `θ` and direction `φ`: an arc of length `s L` and bend `s θ` ends at
+/// `(s L / (s θ)) ((1 − cos sθ) cos φ, (1 − cos sθ) sin φ, sin sθ)`, written with
+/// `1 − cos x = 2 sin²(x/2)` and `sin x / x` so that nothing divides by a small `θ`.
+pub fn arc_point_closed_form(module: &Module, q: [f64; 3], s: f64) -> Vec3<f64> {
+    let (theta, phi) = bend_angle_direction(module, q);
+    let length = s * (module.rest_length + q[2]);
+    let bend = s * theta;
+    let half = 0.5 * bend;
+    // (1 − cos x)/x = 2 sin²(x/2)/x = sin(x/2) · sinc(x/2).
+    let lateral = length * half.sin() * sinc(half);
+    [
+        lateral * phi.cos(),
+        lateral * phi.sin(),
+        length * sinc(bend),
+    ]
+}
+
+/// A segment's `(R, t)` in closed form from `θ`, `φ`: `R = R_z(φ) R_y(θ) R_z(−φ)` (a
+/// rotation by `θ` about the axis `(−sin φ, cos φ, 0)`), `t` the arc's end
+/// ([`arc_point_closed_form`] at `s = 1`).
+pub fn segment_closed_form(module: &Module, q: [f64; 3]) -> (Mat3<f64>, Vec3<f64>) {
+    let (theta, phi) = bend_angle_direction(module, q);
+    let (sp, cp) = phi.sin_cos();
+    let (st, ct) = theta.sin_cos();
+    let rz = |s: f64, c: f64| [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
+    let ry = [[ct, 0.0, st], [0.0, 1.0, 0.0], [-st, 0.0, ct]];
+    let rotation = mat_mul(&mat_mul(&rz(sp, cp), &ry), &rz(-sp, cp));
+    (rotation, arc_point_closed_form(module, q, 1.0))
+}
+
+/// The backbone point at arc fraction `s` by integrating the tangent, independent of the
+/// closed form: `dp/dσ = R(σ) e_z` for `σ ∈ [0, s L]`, with `R(σ)` the rotation by `κ σ`
+/// (`κ = θ / L`) about the bend axis `k ∝ (−Δy, Δx, 0)` by Rodrigues' formula, summed by
+/// composite Simpson over `steps` (even) intervals. Its error is below
+/// `s L (s θ / steps)⁴ / 180`.
+pub fn arc_point_integrated(module: &Module, q: [f64; 3], s: f64, steps: usize) -> Vec3<f64> {
+    let steps = steps.max(2).next_multiple_of(2);
+    let length = module.rest_length + q[2];
+    let lateral = q[0].hypot(q[1]);
+    let curvature = lateral / module.tendon_radius / length;
+    let axis = if lateral > 0.0 {
+        [-q[1] / lateral, q[0] / lateral, 0.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    // R(σ) e_z = e_z + sin α (k × e_z) + (1 − cos α) k × (k × e_z), α = κ σ.
+    let cross = |x: &Vec3<f64>, y: &Vec3<f64>| -> Vec3<f64> {
+        [
+            x[1] * y[2] - x[2] * y[1],
+            x[2] * y[0] - x[0] * y[2],
+            x[0] * y[1] - x[1] * y[0],
+        ]
+    };
+    let k_ez = cross(&axis, &[0.0, 0.0, 1.0]);
+    let k_k_ez = cross(&axis, &k_ez);
+    let tangent = |sigma: f64| -> Vec3<f64> {
+        let (sa, ca) = (curvature * sigma).sin_cos();
+        std::array::from_fn(|c| {
+            let ez = if c == 2 { 1.0 } else { 0.0 };
+            ez + sa * k_ez[c] + (1.0 - ca) * k_k_ez[c]
+        })
+    };
+    let h = s * length / steps as f64;
+    // Compensated (Kahan) sums, so that rounding stays near one ulp over the many terms.
+    let (mut sum, mut carry) = ([0.0; 3], [0.0; 3]);
+    for n in 0..=steps {
+        let weight = if n == 0 || n == steps {
+            1.0
+        } else if n % 2 == 1 {
+            4.0
+        } else {
+            2.0
+        };
+        let t = tangent(n as f64 * h);
+        for c in 0..3 {
+            let y = weight * t[c] - carry[c];
+            let next = sum[c] + y;
+            carry[c] = (next - sum[c]) - y;
+            sum[c] = next;
+        }
+    }
+    sum.map(|x| x * h / 3.0)
+}
+
+/// `R x + t`.
+fn transform<T>(rotation: &Mat3<T>, translation: &Vec3<T>, x: &Vec3<T>) -> Vec3<T>
+where
+    T: Copy + Add<Output = T> + Mul<Output = T>,
+{
+    std::array::from_fn(|r| {
+        rotation[r][0] * x[0] + rotation[r][1] * x[1] + rotation[r][2] * x[2] + translation[r]
+    })
+}
+
+/// A watched point of an obstacle as the robot gives it, in the frame it is fixed in: a
+/// plate point's coordinates in its plate's tip frame, or an arc fraction.
+enum Local {
+    Plate(Vec3<f64>),
+    Arc(f64),
+}
+
+fn local_point(module: &Module, point: &WatchedPoint) -> Local {
+    match *point {
+        WatchedPoint::Corner(j) => {
+            let (s, c) = module.corner_angles[j].sin_cos();
+            Local::Plate([module.corner_radius * c, module.corner_radius * s, 0.0])
+        }
+        WatchedPoint::Centre => Local::Plate([0.0; 3]),
+        WatchedPoint::Listed(p) => Local::Plate(p),
+        WatchedPoint::Arc(s) => Local::Arc(s),
+    }
+}
+
+/// Every barrier of `robot` as jets (docs/model.md §3), in this order: the plate corners
+/// (module by module, corner by corner), each module's limits (elongation min and max,
+/// bend), each obstacle's watched points in the robot's order. Limits:
+/// `b = δL − (δL_min + ε)`, `b = (δL_max − ε) − δL`, `b = (θ_b² − θ²)/(2 θ_b)` with
+/// `θ_b = θ_max − ε`; obstacles: `b = n·x − o − ε` and `b = |x − c| − ρ − ε` with `x` the
+/// watched point in the world.
+pub fn all_barriers<const N: usize>(robot: &Robot, q: &[f64; N], qd: &[f64; N]) -> Vec<Jet<N>> {
+    let mut out = barriers(robot, q, qd);
+    let x = Jet::seed(q, qd);
+    for (i, (module, limits)) in robot.modules.iter().zip(&robot.limits).enumerate() {
+        let dl = x[3 * i + 2];
+        if let Some([min, max]) = limits.elongation {
+            out.push(dl + (-(min + limits.elongation_margin)));
+            out.push((max - limits.elongation_margin) - dl);
+        }
+        if let Some(max_bend) = limits.max_bend {
+            let bound = max_bend - limits.bend_margin;
+            let inv_d = 1.0 / module.tendon_radius;
+            let (a, b) = (x[3 * i] * inv_d, x[3 * i + 1] * inv_d);
+            out.push((bound * bound - (a * a + b * b)) * (0.5 / bound));
+        }
+    }
+    let kinematics = chain(robot, q, qd);
+    for obstacle in &robot.obstacles {
+        for watched in &obstacle.watch {
+            let i = watched.module;
+            let module = &robot.modules[i];
+            let point = match local_point(module, &watched.point) {
+                Local::Plate(p) => transform(
+                    &kinematics.world_rotation[i],
+                    &kinematics.world_position[i],
+                    &p.map(Jet::constant),
+                ),
+                Local::Arc(s) => {
+                    let local = arc_point(module, s, x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                    match i.checked_sub(1) {
+                        None => local,
+                        Some(below) => transform(
+                            &kinematics.world_rotation[below],
+                            &kinematics.world_position[below],
+                            &local,
+                        ),
+                    }
+                }
+            };
+            out.push(obstacle_barrier(&obstacle.shape, obstacle.margin, point));
+        }
+    }
+    out
+}
+
+/// An obstacle's barrier at world point `x` (jets or plain numbers).
+fn obstacle_barrier<const N: usize>(shape: &Shape, margin: f64, x: Vec3<Jet<N>>) -> Jet<N> {
+    match *shape {
+        Shape::HalfSpace { normal, offset } => {
+            x[0] * normal[0] + x[1] * normal[1] + x[2] * normal[2] + (-(offset + margin))
+        }
+        Shape::Sphere { center, radius } => {
+            let d: Vec3<Jet<N>> = std::array::from_fn(|c| x[c] + (-center[c]));
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() + (-(radius + margin))
+        }
+    }
+}
+
+/// The world pose `(R, t)` of every plate as products of the closed-form segment
+/// transforms ([`segment_closed_form`]).
+pub fn plate_poses_closed_form(robot: &Robot, q: &[f64]) -> Vec<(Mat3<f64>, Vec3<f64>)> {
+    let mut poses: Vec<(Mat3<f64>, Vec3<f64>)> = Vec::with_capacity(robot.modules.len());
+    for (i, module) in robot.modules.iter().enumerate() {
+        let (r, t) = segment_closed_form(module, [q[3 * i], q[3 * i + 1], q[3 * i + 2]]);
+        poses.push(match poses.last() {
+            None => (r, t),
+            Some((parent_r, parent_t)) => {
+                (mat_mul(parent_r, &r), transform(parent_r, parent_t, &t))
+            }
+        });
+    }
+    poses
+}
+
+/// The world position of watched point `point` of module `module` from the closed forms:
+/// a plate point through its plate's pose, an arc point through the pose of the plate below
+/// (the world frame for the first module).
+pub fn watched_point_closed_form(
+    robot: &Robot,
+    q: &[f64],
+    module: usize,
+    point: &WatchedPoint,
+) -> Vec3<f64> {
+    let poses = plate_poses_closed_form(robot, q);
+    let m = &robot.modules[module];
+    match local_point(m, point) {
+        Local::Plate(p) => transform(&poses[module].0, &poses[module].1, &p),
+        Local::Arc(s) => {
+            let local =
+                arc_point_closed_form(m, [q[3 * module], q[3 * module + 1], q[3 * module + 2]], s);
+            match module.checked_sub(1) {
+                None => local,
+                Some(below) => transform(&poses[below].0, &poses[below].1, &local),
+            }
+        }
+    }
+}
+
+/// Every barrier's value in plain f64 from the closed forms in `θ`, `φ` (no `f_s`, `f_c`):
+/// corner heights as the third coordinate of `t + R p_ij` in the segment's base frame,
+/// `θ = |(Δx, Δy)| / d` for the bend limit, watched points through
+/// [`watched_point_closed_form`]. Same order as [`all_barriers`].
+pub fn all_barrier_values_closed_form(robot: &Robot, q: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    for (i, module) in robot.modules.iter().enumerate() {
+        let (r, t) = segment_closed_form(module, [q[3 * i], q[3 * i + 1], q[3 * i + 2]]);
+        for (j, margin) in module.margins.iter().enumerate() {
+            let corner = match local_point(module, &WatchedPoint::Corner(j)) {
+                Local::Plate(p) => p,
+                Local::Arc(_) => unreachable!("a corner is a plate point"),
+            };
+            out.push(transform(&r, &t, &corner)[2] - margin);
+        }
+    }
+    for (i, (module, limits)) in robot.modules.iter().zip(&robot.limits).enumerate() {
+        let dl = q[3 * i + 2];
+        if let Some([min, max]) = limits.elongation {
+            out.push(dl - (min + limits.elongation_margin));
+            out.push((max - limits.elongation_margin) - dl);
+        }
+        if let Some(max_bend) = limits.max_bend {
+            let bound = max_bend - limits.bend_margin;
+            let (theta, _) = bend_angle_direction(module, [q[3 * i], q[3 * i + 1], q[3 * i + 2]]);
+            out.push((bound * bound - theta * theta) / (2.0 * bound));
+        }
+    }
+    for obstacle in &robot.obstacles {
+        for watched in &obstacle.watch {
+            let x = watched_point_closed_form(robot, q, watched.module, &watched.point);
+            let value =
+                obstacle_barrier::<0>(&obstacle.shape, obstacle.margin, x.map(Jet::constant));
+            out.push(value.v);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -683,5 +977,26 @@ mod tests {
         assert!((f.dd - second).abs() < 1e-6, "{} vs {second}", f.dd);
         let gd0 = (fx(xv + 0.4 * h, yv + 2.0 * h) - fx(xv - 0.4 * h, yv - 2.0 * h)) / (2.0 * h);
         assert!((f.gd[0] - gd0).abs() < 1e-8);
+    }
+
+    /// The closed forms in `θ`, `φ` against the jets' `f_s`, `f_c` form at random states,
+    /// including `θ = 0` and subnormal bends: rotation, translation and the arc at `s = 1`.
+    #[test]
+    fn closed_form_segment_matches_jets() {
+        let module = paper_module(0.0);
+        let mut rng = crate::rng(0x5eed_0c10);
+        for _ in 0..2000 {
+            let theta = sample_theta(&mut rng, &[SERIES_BELOW]);
+            let q = sample_module(&mut rng, &module, theta);
+            let (r, t) = segment_value(&module, q);
+            let (rc, tc) = segment_closed_form(&module, q);
+            for (x, y) in r.iter().flatten().zip(rc.iter().flatten()) {
+                assert!((x - y).abs() <= 1e-15, "q = {q:?}: R {x:e} vs {y:e}");
+            }
+            for (x, y) in t.iter().zip(&tc) {
+                assert!((x - y).abs() <= 1e-16, "q = {q:?}: t {x:e} vs {y:e}");
+            }
+            assert_eq!(arc_point_closed_form(&module, q, 1.0), tc);
+        }
     }
 }
