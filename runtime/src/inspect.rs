@@ -1,8 +1,14 @@
 //! `softcbf model`: every generated and dynamic quantity at one state, as one JSON object.
 //! Used to inspect a robot file and to compare against other implementations.
+//!
+//! Besides the values, the object says what each barrier is twice: `barrier_table` (the
+//! generated table: kind as generated code names it, the corner, the parameters read) and
+//! `barrier_info` (the kind's key, margin, unit, limits, obstacle geometry and watched point,
+//! with the robot's numbers, from [`crate::barrier_info::describe_all`]).
 
 use serde_json::{Value, json};
 
+use crate::barrier_info::describe_all;
 use crate::dynamics::{
     BarrierTerms, DynamicsError, DynamicsWorkspace, elastic_energy, gravity_energy, kinetic_energy,
     model_terms,
@@ -59,6 +65,7 @@ pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Result<Value, Dynam
         "qd": qd,
         "plate_poses": poses,
         "barrier_table": barrier_table(model),
+        "barrier_info": describe_all(model),
         "barriers": terms.values(),
         "barrier_jacobian": rows(terms.jacobian(), nq),
         "barrier_jdot_qd": terms.jdot_qd(),

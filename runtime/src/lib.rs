@@ -4,6 +4,7 @@
 //! | module | what it is for |
 //! |---|---|
 //! | [`model`] | [`model::Model`]: a robot description joined to its generated functions, immutable |
+//! | [`barrier_info`] | each barrier's numbers (margin, limits, obstacle geometry, watched point) from the robot |
 //! | [`spatial`] | spatial (6-D) vectors, compact transforms and rigid-body inertias (nalgebra) |
 //! | [`dynamics`] | `M`, `h = C q̇`, `G` by CRBA and RNEA, [`dynamics::model_terms`] for a tick, forward dynamics |
 //! | [`linalg`] | small dense Cholesky and LU on preallocated slices, the one `dot` |
@@ -47,6 +48,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod barrier_info;
 pub mod cli;
 pub mod control;
 pub mod dynamics;

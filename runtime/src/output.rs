@@ -89,12 +89,13 @@ pub fn write_outputs(
     Ok(written)
 }
 
-/// The one line printed at the end of a run.
+/// The one line printed at the end of a run; for a robot with barriers of more than one
+/// kind group it names the lowest of each ([`crate::sim::LowestByKind::line`]).
 pub fn one_line(summary: &RunSummary) -> String {
     let counts = &summary.counts;
     let mut line = format!(
         "{} on {} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier \
-         {:.3e} m ({}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
+         {:.3e} {} ({}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
         summary.scenario,
         summary.robot,
         summary.controller,
@@ -102,11 +103,15 @@ pub fn one_line(summary: &RunSummary) -> String {
         summary.wall_time,
         summary.real_time_factor,
         summary.min_barrier.value,
+        summary.min_barrier.unit,
         summary.min_barrier.label,
         summary.min_barrier.t,
         summary.set_point_error,
         summary.max_abs_tau,
     );
+    if let Some(per_kind) = summary.lowest_by_kind.line() {
+        line += &format!("; {per_kind}");
+    }
     if counts.qp_solves > 0 {
         line += &format!(
             "; {} QP solves ({} with active barriers, {} relaxed, {} failed)",

@@ -2,11 +2,11 @@
 //! and named extra columns), preallocated so that recording allocates nothing per tick.
 //!
 //! The column layout ([`Columns`]) is fixed at construction: the coordinates' names, the
-//! barriers' labels (from the model's barrier table) and the extra columns. Rows are stored
-//! row-major in one buffer; [`Record::push_row`] copies a [`Row`] into it. The CSV form is
-//! written by [`Record::write_csv`], streamed during a run by [`CsvWriter`] and read back by
-//! [`Record::read_csv`]; the three share one formatting and parsing code path (in
-//! `record/csv.rs`).
+//! barriers' labels and units (from the model's barrier table) and the extra columns. Rows
+//! are stored row-major in one buffer; [`Record::push_row`] copies a [`Row`] into it. The
+//! CSV form is written by [`Record::write_csv`], streamed during a run by [`CsvWriter`] and
+//! read back by [`Record::read_csv`]; the three share one formatting and parsing code path
+//! (in `record/csv.rs`).
 //!
 //! # Column names
 //!
@@ -22,14 +22,15 @@
 //! | velocities `q̇` | `<c>/dt [m/s]` | `dx1/dt [m/s]` |
 //! | applied command `τ` | `tau <c> [N]` | `tau dL2 [N]` |
 //! | nominal command `τ_nom` | `tau_nom <c> [N]` | `tau_nom dL2 [N]` |
-//! | barriers `b` | `b <label> [m]` | `b module 1 corner 3 [m]` |
+//! | barriers `b` | `b <label> [<unit>]` | `b module 1 corner 3 [m]`, `b module 2 bend [rad]` |
 //! | extras | as given, unit in brackets | `read [us]`, `f module 1 tendon 2 [N]` |
 //!
 //! Coordinates are named by [`coordinate_names`] (module numbers from 1, as in the paper's
 //! `Δx₁`); barrier labels are taken as the model's barrier table gives them
-//! (`softcbf_generated::BarrierInfo::label`). [`Record::read_csv`] also reads the older
-//! header `t,q0,…,qd0,…,tau0,…,taunom0,…,b0,…` (then the coordinates get the standard
-//! names and the barriers the labels `barrier 1`, `barrier 2`, …).
+//! (`softcbf_generated::BarrierInfo::label`), and a barrier's unit is its kind's
+//! ([`BARRIER_UNITS`]: `m`, or `rad` for a bend limit). [`Record::read_csv`] also reads the
+//! older header `t,q0,…,qd0,…,tau0,…,taunom0,…,b0,…` (then the coordinates get the
+//! standard names, the barriers the labels `barrier 1`, `barrier 2`, … and the unit `m`).
 //!
 //! ```
 //! use softcbf::record::{Columns, Record, Row};
@@ -119,15 +120,24 @@ pub enum RecordError {
         /// Size given.
         found: usize,
     },
-    /// A coordinate name, barrier label or extra column name cannot be used.
+    /// A coordinate name, barrier label, barrier unit or extra column name cannot be used.
     #[error("{what} `{name}`: {reason}")]
     ColumnName {
-        /// What kind of name: `coordinate name`, `barrier label` or `extra column name`.
+        /// What kind of name: `coordinate name`, `barrier label`, `barrier unit` or
+        /// `extra column name`.
         what: &'static str,
         /// The name.
         name: String,
         /// Why it is refused.
         reason: &'static str,
+    },
+    /// A layout's barrier units are not one per barrier.
+    #[error("{found} barrier units for {expected} barriers")]
+    UnitCount {
+        /// Number of barriers.
+        expected: usize,
+        /// Number of units given.
+        found: usize,
     },
     /// A new layout for a record does not have the record's sizes.
     #[error("the new columns have {found} {what}, the record has {expected}")]
@@ -144,37 +154,40 @@ pub enum RecordError {
 /// Name of the time column.
 pub const TIME: &str = "t [s]";
 
-/// The groups of per-coordinate and per-barrier columns, in column order.
+/// The units a barrier column may have: `m` (corners, elongation limits, obstacles) and
+/// `rad` (bend limits), as `softcbf_generated::BarrierKind::unit` gives them.
+pub const BARRIER_UNITS: [&str; 2] = ["m", "rad"];
+
+/// The groups of per-coordinate columns, in column order (the barrier columns follow
+/// them: [`barrier_column`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Group {
     Q,
     Qd,
     Tau,
     TauNom,
-    B,
 }
 
 impl Group {
-    const ALL: [Group; 5] = [Group::Q, Group::Qd, Group::Tau, Group::TauNom, Group::B];
+    const ALL: [Group; 4] = [Group::Q, Group::Qd, Group::Tau, Group::TauNom];
 
-    /// `(prefix, suffix)` around a coordinate name or barrier label.
+    /// `(prefix, suffix)` around a coordinate name.
     fn affixes(self) -> (&'static str, &'static str) {
         match self {
             Group::Q => ("", " [m]"),
             Group::Qd => ("", "/dt [m/s]"),
             Group::Tau => ("tau ", " [N]"),
             Group::TauNom => ("tau_nom ", " [N]"),
-            Group::B => ("b ", " [m]"),
         }
     }
 
-    /// The column name of `name` in this group.
+    /// The column name of coordinate `name` in this group.
     fn column(self, name: &str) -> String {
         let (prefix, suffix) = self.affixes();
         format!("{prefix}{name}{suffix}")
     }
 
-    /// The coordinate name or barrier label inside `column`, if it has this group's form.
+    /// The coordinate name inside `column`, if it has this group's form.
     fn strip(self, column: &str) -> Option<&str> {
         let (prefix, suffix) = self.affixes();
         column
@@ -182,6 +195,24 @@ impl Group {
             .strip_suffix(suffix)
             .filter(|inner| !inner.is_empty())
     }
+}
+
+/// The column name of a barrier: `b <label> [<unit>]`.
+fn barrier_column(label: &str, unit: &str) -> String {
+    format!("b {label} [{unit}]")
+}
+
+/// The label and unit of a barrier column `b <label> [<unit>]` with one of
+/// [`BARRIER_UNITS`], if `column` has that form.
+fn strip_barrier(column: &str) -> Option<(&str, &'static str)> {
+    let inner = column.strip_prefix("b ")?;
+    BARRIER_UNITS.iter().find_map(|&unit| {
+        let label = inner
+            .strip_suffix(']')?
+            .strip_suffix(unit)?
+            .strip_suffix(" [")?;
+        (!label.is_empty()).then_some((label, unit))
+    })
 }
 
 /// Names of `n` generalized coordinates in CSV columns: `dx1, dy1, dL1, dx2, …` for the
@@ -220,11 +251,13 @@ fn csv_name_problem(name: &str) -> Option<&'static str> {
     }
 }
 
-/// The column layout: named coordinates, labelled barriers and named extra scalar columns.
+/// The column layout: named coordinates, labelled barriers with their units and named
+/// extra scalar columns.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Columns {
     coordinates: Vec<String>,
     barriers: Vec<String>,
+    barrier_units: Vec<&'static str>,
     extra: Vec<String>,
 }
 
@@ -239,28 +272,38 @@ impl Columns {
     }
 
     /// Layout for `model`: its coordinates ([`coordinate_names`]), its barriers labelled as
-    /// its barrier table labels them, and the extra columns `extra_names`.
+    /// its barrier table labels them with their kinds' units, and the extra columns
+    /// `extra_names`.
     pub fn for_model(model: &Model, extra_names: &[&str]) -> Result<Columns, RecordError> {
         let coordinates = coordinate_names(model.nq());
         let coordinates: Vec<&str> = coordinates.iter().map(String::as_str).collect();
-        let labels: Vec<&str> = model
-            .generated
-            .barrier_table()
-            .iter()
-            .map(|b| b.label)
-            .collect();
-        Columns::named(&coordinates, &labels, extra_names)
+        let table = model.generated.barrier_table();
+        let labels: Vec<&str> = table.iter().map(|b| b.label).collect();
+        let units: Vec<&str> = table.iter().map(|b| b.kind.unit()).collect();
+        Columns::named_with_units(&coordinates, &labels, &units, extra_names)
     }
 
     /// Layout from the coordinates' names (ASCII letters, digits and `_`, e.g. `dx1`), the
-    /// barriers' labels (any text without brackets, e.g. `module 1 corner 3`) and the
-    /// extra columns' names (e.g. `read [us]`). No name may be empty, start or end with a
-    /// blank, or hold a comma, a quote or a control character; an extra name may not have
-    /// the form of a barrier column (`b … [m]`); every column name of the header must be
-    /// unique.
+    /// barriers' labels (any text without brackets, e.g. `module 1 corner 3`), all in
+    /// metres, and the extra columns' names (e.g. `read [us]`). No name may be empty, start
+    /// or end with a blank, or hold a comma, a quote or a control character; an extra name
+    /// may not have the form of a barrier column (`b … [m]`, `b … [rad]`); every column name
+    /// of the header must be unique.
     pub fn named(
         coordinates: &[&str],
         barriers: &[&str],
+        extra_names: &[&str],
+    ) -> Result<Columns, RecordError> {
+        let units = vec!["m"; barriers.len()];
+        Columns::named_with_units(coordinates, barriers, &units, extra_names)
+    }
+
+    /// As [`Columns::named`], with each barrier's unit (one of [`BARRIER_UNITS`], one per
+    /// barrier label).
+    pub fn named_with_units(
+        coordinates: &[&str],
+        barriers: &[&str],
+        barrier_units: &[&str],
         extra_names: &[&str],
     ) -> Result<Columns, RecordError> {
         let refuse = |what, name: &str, reason| {
@@ -290,21 +333,35 @@ impl Columns {
                 return refuse("barrier label", label, "brackets are kept for units");
             }
         }
+        if barrier_units.len() != barriers.len() {
+            return Err(RecordError::UnitCount {
+                expected: barriers.len(),
+                found: barrier_units.len(),
+            });
+        }
+        let mut units = Vec::with_capacity(barrier_units.len());
+        for unit in barrier_units {
+            match BARRIER_UNITS.iter().find(|known| *known == unit) {
+                Some(known) => units.push(*known),
+                None => return refuse("barrier unit", unit, "a barrier is in `m` or `rad`"),
+            }
+        }
         for name in extra_names {
             if let Some(reason) = csv_name_problem(name) {
                 return refuse("extra column name", name, reason);
             }
-            if Group::B.strip(name).is_some() {
+            if strip_barrier(name).is_some() {
                 return refuse(
                     "extra column name",
                     name,
-                    "`b … [m]` is the form of a barrier column",
+                    "`b … [m]` and `b … [rad]` are the forms of a barrier column",
                 );
             }
         }
         let columns = Columns {
             coordinates: coordinates.iter().map(|s| (*s).to_string()).collect(),
             barriers: barriers.iter().map(|s| (*s).to_string()).collect(),
+            barrier_units: units,
             extra: extra_names.iter().map(|s| (*s).to_string()).collect(),
         };
         let mut names: Vec<(String, usize)> = (0..columns.width())
@@ -359,6 +416,11 @@ impl Columns {
         &self.barriers
     }
 
+    /// Units of the barriers (`m`, or `rad` for a bend limit), in order.
+    pub fn barrier_units(&self) -> &[&'static str] {
+        &self.barrier_units
+    }
+
     /// Names of the extra columns, in order.
     pub fn extra_names(&self) -> &[String] {
         &self.extra
@@ -376,17 +438,19 @@ impl Columns {
         }
         let mut start = 1;
         for group in Group::ALL {
-            let names = if group == Group::B {
-                &self.barriers
-            } else {
-                &self.coordinates
-            };
-            if let Some(name) = names.get(index - start) {
+            if let Some(name) = self.coordinates.get(index - start) {
                 return Some(group.column(name));
             }
-            start += names.len();
+            start += self.n();
         }
-        self.extra.get(index - start).cloned()
+        if let Some((label, unit)) = self
+            .barriers
+            .get(index - start)
+            .zip(self.barrier_units.get(index - start))
+        {
+            return Some(barrier_column(label, unit));
+        }
+        self.extra.get(index - start - self.m()).cloned()
     }
 
     /// Index of the column named `name`, if there is one.
@@ -437,7 +501,8 @@ pub struct Row<'a> {
     pub tau: &'a [f64],
     /// Nominal command `τ_nom` (n) \[N\].
     pub tau_nom: &'a [f64],
-    /// Barrier values `b` (m) \[m\].
+    /// Barrier values `b` (`m` of them), each in its unit ([`Columns::barrier_units`]:
+    /// \[m\], or \[rad\] for a bend limit).
     pub b: &'a [f64],
     /// Extra columns, in the order of [`Columns::extra_names`].
     pub extra: &'a [f64],
@@ -613,7 +678,7 @@ impl Record {
         self.group_column(3, i, self.columns.n())
     }
 
-    /// Barrier `b_j` over all rows \[m\].
+    /// Barrier `b_j` over all rows, in its unit ([`Columns::barrier_units`]).
     pub fn b(&self, j: usize) -> impl Iterator<Item = f64> + '_ {
         self.group_column(4, j, self.columns.m())
     }

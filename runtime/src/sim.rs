@@ -10,7 +10,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
-use softcbf_generated::BarrierInfo;
+use softcbf_description::barriers::KIND_GROUPS;
+use softcbf_generated::{BarrierInfo, BarrierKind, KindGroup};
 
 use crate::control::{self, Controller, ControllerError, TickStatus};
 use crate::integrator::IntegratorError;
@@ -44,16 +45,22 @@ pub enum SimulationError {
 /// The lowest barrier value seen at a tick.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BarrierMinimum {
-    /// `min_k b_k(t)` over the ticks \[m\].
+    /// `min_k b_k(t)` over the ticks, in [`BarrierMinimum::unit`].
     pub value: f64,
     /// Index of that barrier in the model's barrier table (0-based).
     pub barrier: usize,
     /// Its module (1-based, base first; 0 before any barrier was seen).
     pub module: usize,
-    /// Its point on the module, for a plate corner the corner (1-based; 0 before any).
+    /// Its point on the module, for a plate corner the corner (1-based; 0 before any and
+    /// for a barrier of another kind).
     pub corner: usize,
     /// Its name in the barrier table, e.g. `module 1 corner 3` (empty before any).
     pub label: &'static str,
+    /// Its kind, as `softcbf model` names it (`plate_corner`, `bend`, `sphere`, …; empty
+    /// before any).
+    pub kind: &'static str,
+    /// The unit of `value`: `m`, or `rad` for a bend limit.
+    pub unit: &'static str,
     /// When \[s\].
     pub t: f64,
 }
@@ -67,6 +74,8 @@ impl BarrierMinimum {
             module: 0,
             corner: 0,
             label: "",
+            kind: "",
+            unit: "m",
             t: 0.0,
         }
     }
@@ -74,14 +83,131 @@ impl BarrierMinimum {
     /// Barrier `k` of `table` at `value`, time `t`.
     pub fn of(table: &[BarrierInfo], k: usize, value: f64, t: f64) -> BarrierMinimum {
         let (module, corner, label) = owner(table, k);
+        let kind = table.get(k).map(|b| b.kind);
         BarrierMinimum {
             value,
             barrier: k,
             module,
             corner,
             label,
+            kind: kind.map_or("", BarrierKind::key),
+            unit: kind.map_or("m", BarrierKind::unit),
             t,
         }
+    }
+}
+
+/// The lowest barrier of each kind group a model has ([`KindGroup`]: plate corners,
+/// elongation limits, bend limits, obstacles), kept in place over a run (no allocation per
+/// tick). In `summary.json` it is an object keyed by [`KindGroup::key`] holding only the
+/// groups the model has: `"lowest_by_kind": {"bend": {…}, "plate_corner": {…}}`, each a
+/// [`BarrierMinimum`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct LowestByKind {
+    /// Per entry of [`KIND_GROUPS`]: `None` if the model has no barrier of that group.
+    groups: [Option<BarrierMinimum>; KIND_GROUPS.len()],
+}
+
+/// The position of `group` in [`KIND_GROUPS`].
+fn group_index(group: KindGroup) -> usize {
+    KIND_GROUPS
+        .iter()
+        .position(|&g| g == group)
+        .unwrap_or_default()
+}
+
+impl LowestByKind {
+    /// Nothing seen yet, for the groups the barriers of `table` fall in.
+    pub fn new(table: &[BarrierInfo]) -> LowestByKind {
+        let mut groups: [Option<BarrierMinimum>; KIND_GROUPS.len()] = Default::default();
+        for info in table {
+            groups[group_index(info.kind.group())].get_or_insert_with(|| BarrierMinimum {
+                unit: info.kind.unit(),
+                ..BarrierMinimum::none()
+            });
+        }
+        LowestByKind { groups }
+    }
+
+    /// Barrier `k` of `table` at `value`, time `t`: kept if below its group's lowest so far
+    /// (a NaN never is; a caller that counts it as the lowest passes `-∞`).
+    pub fn observe(&mut self, table: &[BarrierInfo], k: usize, value: f64, t: f64) {
+        let Some(info) = table.get(k) else {
+            return;
+        };
+        if let Some(lowest) = &mut self.groups[group_index(info.kind.group())]
+            && value < lowest.value
+        {
+            *lowest = BarrierMinimum::of(table, k, value, t);
+        }
+    }
+
+    /// Every barrier of `values` (one per row of `table`) at time `t`.
+    pub fn observe_all(&mut self, table: &[BarrierInfo], values: &[f64], t: f64) {
+        for (k, &value) in values.iter().enumerate() {
+            self.observe(table, k, value, t);
+        }
+    }
+
+    /// The lowest barrier of `group`, if the model has that group.
+    pub fn get(&self, group: KindGroup) -> Option<&BarrierMinimum> {
+        self.groups[group_index(group)].as_ref()
+    }
+
+    /// The groups the model has with their lowest barriers, in the order of [`KIND_GROUPS`].
+    pub fn iter(&self) -> impl Iterator<Item = (KindGroup, &BarrierMinimum)> + '_ {
+        KIND_GROUPS
+            .iter()
+            .zip(&self.groups)
+            .filter_map(|(&group, lowest)| Some((group, lowest.as_ref()?)))
+    }
+
+    /// Number of groups the model has.
+    pub fn len(&self) -> usize {
+        self.groups.iter().flatten().count()
+    }
+
+    /// Whether the model has no barrier at all.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The per-group part of a printed summary, when the model has more groups than one:
+    /// `lowest per kind: plate corners 1.000e-3 m (module 1 corner 3, t = 0.120 s), bend
+    /// limits …`; `None` for a model with plate corners only.
+    pub fn line(&self) -> Option<String> {
+        if self.len() < 2 {
+            return None;
+        }
+        let parts: Vec<String> = self
+            .iter()
+            .map(|(group, b)| {
+                if b.value.is_finite() || b.value == f64::NEG_INFINITY {
+                    format!(
+                        "{} {:.3e} {} ({}, t = {:.3} s)",
+                        group.title(),
+                        b.value,
+                        b.unit,
+                        b.label,
+                        b.t
+                    )
+                } else {
+                    format!("{} not seen", group.title())
+                }
+            })
+            .collect();
+        Some(format!("lowest per kind: {}", parts.join(", ")))
+    }
+}
+
+impl Serialize for LowestByKind {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = serializer.serialize_map(Some(self.len()))?;
+        for (group, lowest) in self.iter() {
+            map.serialize_entry(group.key(), lowest)?;
+        }
+        map.end()
     }
 }
 
@@ -150,6 +276,8 @@ pub struct RunSummary {
     pub control_period: f64,
     /// Lowest barrier value at a tick, and which barrier.
     pub min_barrier: BarrierMinimum,
+    /// Lowest barrier value at a tick of each kind group the model has.
+    pub lowest_by_kind: LowestByKind,
     /// Final `q` \[m\].
     pub final_q: Vec<f64>,
     /// Final reference `q̄` \[m\].
@@ -273,6 +401,7 @@ pub fn simulate(
     let mut counts = TickCounts::default();
     let mut relaxed_ticks = vec![0usize; nb];
     let mut minimum = BarrierMinimum::none();
+    let mut lowest_by_kind = LowestByKind::new(table);
     let mut max_abs_tau = 0.0_f64;
     let (mut control_time, mut integration_time) = (Duration::ZERO, Duration::ZERO);
     let mut stopped = None;
@@ -318,6 +447,7 @@ pub fn simulate(
                 minimum = BarrierMinimum::of(table, j, b, t);
             }
         }
+        lowest_by_kind.observe_all(table, controller.barriers(), t);
         let applied = if k < ticks { controller.tau() } else { &[][..] };
         max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
         record.push_row(&Row {
@@ -382,6 +512,7 @@ pub fn simulate(
         duration: t,
         control_period: scenario.control_period,
         min_barrier: minimum,
+        lowest_by_kind,
         final_q,
         set_point,
         set_point_error,

@@ -25,6 +25,7 @@ use crate::settings::{
     Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, file_name,
     resolve_gains, software, vector_text,
 };
+use crate::sim::BarrierMinimum;
 
 /// Options of `softcbf emulate`.
 #[derive(Args, Debug)]
@@ -432,7 +433,10 @@ pub fn run_settings_report(
 }
 
 /// Writes `dir/summary.json`: the settings, the verdict and the counts of a hardware run,
-/// with `controller` and `set_point` as `softcbf simulate` writes them.
+/// with `controller` and `set_point` as `softcbf simulate` writes them; the lowest barrier
+/// overall (`min_barrier`) and per kind group (`lowest_by_kind`, keyed by
+/// `KindGroup::key`), each with `value` (`null` when no reading was made), `label`, `t`
+/// and `unit`.
 fn write_summary(
     dir: &Path,
     settings: &SettingsReport,
@@ -446,6 +450,14 @@ fn write_summary(
         Verdict::Fault(why) => format!("fault: {why}"),
     };
     let finite = |v: f64| v.is_finite().then_some(v);
+    let lowest = |b: &BarrierMinimum| {
+        serde_json::json!({
+            "value": finite(b.value),
+            "label": b.label,
+            "t": b.t,
+            "unit": b.unit,
+        })
+    };
     let summary = serde_json::json!({
         "controller": if settings.filter.value { "filter" } else { "pd" },
         "robot": settings.robot.name,
@@ -462,11 +474,12 @@ fn write_summary(
         "overruns": s.overruns,
         "elapsed": s.elapsed,
         "rate": s.rate(),
-        "min_barrier": {
-            "value": finite(s.min_barrier.value),
-            "label": s.min_barrier.label,
-            "t": s.min_barrier.t,
-        },
+        "min_barrier": lowest(&s.min_barrier),
+        "lowest_by_kind": s
+            .lowest_by_kind
+            .iter()
+            .map(|(group, b)| (group.key().to_string(), lowest(b)))
+            .collect::<serde_json::Map<_, _>>(),
         "clamps": { "low": s.clamps.low, "high": s.clamps.high },
         "bus": {
             "transactions": s.bus.transactions,
@@ -529,9 +542,15 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
     let m = &s.min_barrier;
     if m.value.is_finite() {
         console.say(&format!(
-            "lowest barrier {:.3e} m ({}, t = {:.3} s); threshold {threshold:e} m",
-            m.value, m.label, m.t
+            "lowest barrier {:.3e} {unit} ({}, t = {:.3} s); threshold {threshold:e} {unit}",
+            m.value,
+            m.label,
+            m.t,
+            unit = m.unit
         ));
+        if let Some(per_kind) = s.lowest_by_kind.line() {
+            console.say(&per_kind);
+        }
     } else if s.commands > 0 {
         console.say("lowest barrier: not finite (a state outside the model)");
     }

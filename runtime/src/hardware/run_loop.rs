@@ -41,7 +41,7 @@ use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::Model;
 use crate::plant::Plant;
 use crate::protocol::{Bus, BusCounters};
-use crate::sim::BarrierMinimum;
+use crate::sim::{BarrierMinimum, LowestByKind};
 
 use crate::hardware::log::FIXED_EXTRA;
 pub use crate::hardware::log::{RunLog, extra_columns};
@@ -206,6 +206,7 @@ pub fn run<P: ServoPort>(
         clamps: Clamps::default(),
         bus: BusCounters::default(),
         min_barrier: BarrierMinimum::none(),
+        lowest_by_kind: LowestByKind::new(model.generated.barrier_table()),
         elapsed: 0.0,
         max_compute: 0.0,
         max_age: 0.0,
@@ -463,10 +464,11 @@ fn control_loop<P: ServoPort>(
                     .barriers(&model.params, &ws.q, &mut ws.barriers);
                 for (j, &b) in ws.barriers.iter().enumerate() {
                     // A NaN barrier (a state outside the model) counts as the lowest.
+                    let value = if b.is_nan() { f64::NEG_INFINITY } else { b };
                     if b < summary.min_barrier.value || b.is_nan() {
-                        let value = if b.is_nan() { f64::NEG_INFINITY } else { b };
                         summary.min_barrier = BarrierMinimum::of(barrier_table, j, value, t);
                     }
+                    summary.lowest_by_kind.observe(barrier_table, j, value, t);
                 }
                 summary.max_compute = summary.max_compute.max(timing.compute.as_secs_f64());
                 (true, status_code(tick_status))

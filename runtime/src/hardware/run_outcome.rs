@@ -4,7 +4,7 @@
 use crate::hardware::mapping::Clamps;
 use crate::hardware::run_loop::RATE_WINDOW;
 use crate::protocol::BusCounters;
-use crate::sim::BarrierMinimum;
+use crate::sim::{BarrierMinimum, LowestByKind};
 
 /// Why a run ended.
 #[derive(Clone, Debug, PartialEq)]
@@ -101,9 +101,11 @@ pub struct RunSummary {
     pub clamps: Clamps,
     /// Bus event counts.
     pub bus: BusCounters,
-    /// Lowest barrier value at a reading (the state read, not predicted) \[m\], and which;
+    /// Lowest barrier value at a reading (the state read, not predicted), and which;
     /// `value` is infinite when no reading was made.
     pub min_barrier: BarrierMinimum,
+    /// The same per kind group of the model's barriers.
+    pub lowest_by_kind: LowestByKind,
     /// Time from the first tick to the stop \[s\].
     pub elapsed: f64,
     /// Largest software time of one tick (mapping, prediction, controller, tensions) \[s\].
@@ -129,7 +131,8 @@ impl RunSummary {
     }
 
     /// Whether the run was safe: a fault stop or an unconfirmed torque-off is a
-    /// [`Verdict::Fault`]; a lowest barrier below `threshold` \[m\] or a tick that fell back
+    /// [`Verdict::Fault`]; a lowest barrier below `threshold` (in the barrier's unit, \[m\]
+    /// for all but bend limits, \[rad\]) or a tick that fell back
     /// to the zero command is [`Verdict::Unsafe`].
     pub fn verdict(&self, threshold: f64) -> Verdict {
         if self.stop.is_fault() {
@@ -151,9 +154,12 @@ impl RunSummary {
         let b = &self.min_barrier;
         if b.value < threshold {
             reasons.push(format!(
-                "lowest barrier {:.3e} m ({}, t = {:.3} s) is below the threshold \
-                 {threshold:e} m (--barrier-threshold)",
-                b.value, b.label, b.t
+                "lowest barrier {:.3e} {unit} ({}, t = {:.3} s) is below the threshold \
+                 {threshold:e} {unit} (--barrier-threshold)",
+                b.value,
+                b.label,
+                b.t,
+                unit = b.unit
             ));
         }
         if self.fallbacks > 0 {

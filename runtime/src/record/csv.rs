@@ -10,7 +10,7 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use super::{Columns, Group, Record, RecordError, Row, TIME};
+use super::{Columns, Group, Record, RecordError, Row, TIME, strip_barrier};
 
 /// First capacity of the streaming writer's line buffer (a row of the paper robot with the
 /// hardware log's columns is about 800 bytes); it grows once if a row is longer.
@@ -116,8 +116,9 @@ impl Record {
 }
 
 /// Reads the layout from a header line: the current form (`t [s]`, `<c> [m]`…,
-/// `<c>/dt [m/s]`…, `tau <c> [N]`…, `tau_nom <c> [N]`…, `b <label> [m]`…, extras) or the
-/// older one (`t`, `q0…`, `qd0…`, `tau0…`, `taunom0…`, `b0…`, extras).
+/// `<c>/dt [m/s]`…, `tau <c> [N]`…, `tau_nom <c> [N]`…, `b <label> [<unit>]`… with the
+/// unit `m` or `rad`, extras) or the older one (`t`, `q0…`, `qd0…`, `tau0…`, `taunom0…`,
+/// `b0…`, extras).
 fn parse_header(line: &str, file: &Path) -> Result<Columns, RecordError> {
     let names: Vec<&str> = line.split(',').map(str::trim).collect();
     let mismatch = |column: usize, expected: String| RecordError::Header {
@@ -189,13 +190,13 @@ fn parse_named(
         }
     }
     let first_barrier = 1 + 4 * n;
-    let barriers: Vec<&str> = names[first_barrier.min(names.len())..]
+    let (barriers, units): (Vec<&str>, Vec<&str>) = names[first_barrier.min(names.len())..]
         .iter()
-        .map_while(|name| Group::B.strip(name))
-        .collect();
+        .map_while(|name| strip_barrier(name))
+        .unzip();
     let first_extra = first_barrier + barriers.len();
     let extra = &names[first_extra.min(names.len())..];
-    Columns::named(&coordinates, &barriers, extra)
+    Columns::named_with_units(&coordinates, &barriers, &units, extra)
         .map_err(|error| name_mismatch(error, names, mismatch))
 }
 
@@ -245,15 +246,12 @@ fn name_mismatch(
 ) -> RecordError {
     let column = match &error {
         RecordError::ColumnName { what, name, .. } => {
-            let formed = match *what {
-                "coordinate name" => Group::Q.column(name),
-                "barrier label" => Group::B.column(name),
-                _ => name.clone(),
+            let formed = |column: &str| match *what {
+                "coordinate name" => column == Group::Q.column(name),
+                "barrier label" => strip_barrier(column).is_some_and(|(label, _)| label == name),
+                _ => column == name,
             };
-            names
-                .iter()
-                .rposition(|column| *column == formed)
-                .unwrap_or(0)
+            names.iter().rposition(|column| formed(column)).unwrap_or(0)
         }
         _ => 0,
     };
