@@ -19,8 +19,9 @@ fn rows(flat: &[f64], columns: usize) -> Vec<Vec<f64>> {
     flat.chunks(columns).map(<[f64]>::to_vec).collect()
 }
 
-/// What each barrier is, in the order of the barrier arrays: its kind, module and point
-/// (1-based, as in `summary.json`), label and the names of the parameters it reads.
+/// What each barrier is, in the order of the barrier arrays: its kind, module and, for a
+/// plate corner, the corner (1-based, as in `summary.json`), label and the names of the
+/// parameters it reads.
 fn barrier_table(model: &Model) -> Value {
     let names = model.generated.param_names();
     let rows: Vec<Value> = model
@@ -33,13 +34,18 @@ fn barrier_table(model: &Model) -> Value {
                 .iter()
                 .filter_map(|&k| names.get(k).copied())
                 .collect();
-            json!({
+            let mut row = json!({
                 "kind": format!("{:?}", b.kind),
                 "module": b.module + 1,
-                "point": b.corner().map(|j| j + 1),
                 "label": b.label,
                 "params": params,
-            })
+            });
+            // The corner (1-based) of a plate-corner barrier; other kinds describe their
+            // points in `barrier_info`.
+            if let (Some(j), Some(map)) = (b.corner(), row.as_object_mut()) {
+                map.insert("point".into(), json!(j + 1));
+            }
+            row
         })
         .collect();
     Value::Array(rows)

@@ -270,9 +270,9 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     let lowest = &main.summary.min_barrier;
     if filter && lowest.value < threshold {
         eprintln!(
-            "error: unsafe run: lowest barrier {:.3e} m ({}, t = {:.3} s) is below the \
-             threshold {threshold:e} m (--barrier-threshold)",
-            lowest.value, lowest.label, lowest.t
+            "error: unsafe run: lowest barrier {:.3e} {} ({}, t = {:.3} s) is below the \
+             threshold {threshold:e} (--barrier-threshold, m or rad)",
+            lowest.value, lowest.unit, lowest.label, lowest.t
         );
         code = exit::worst(code, exit::UNSAFE);
     }

@@ -330,7 +330,7 @@ impl Checker<'_> {
                     "components [nx, ny, nz]",
                 )?;
                 let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                if !(norm > 1e-9) {
+                if norm <= 1e-9 {
                     return Err(self.invalid(
                         &normal.span(),
                         &field("normal"),
