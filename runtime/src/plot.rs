@@ -5,7 +5,10 @@
 //! `softcbf plot`. The time axis is split where the motion settles ([`Split`]): the
 //! transient gets most of the width, the rest of the run the remainder, on one shared
 //! value axis. Barriers that reach zero are labelled (from the record's barrier labels)
-//! in a column below the lowest of them, so the labels collide with nothing.
+//! in a column below the lowest of them, so the labels collide with nothing. A robot with
+//! barriers beyond its plate corners gets one row of barrier panels per kind group
+//! ([`KindGroup`]: plate corners, elongation limits, bend limits, obstacles), each with
+//! its unit and zero line; the plate corners alone keep the one row of Fig. 4.
 //!
 //! Text is drawn with DejaVu Sans compiled into the binary (registered once with plotters'
 //! `ab_glyph` backend), so a figure comes out byte-identical on any machine: no system
@@ -34,6 +37,9 @@ mod style;
 
 use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, IntoFont, SVGBackend};
 use plotters::style::register_font;
+
+use softcbf_description::barriers::KIND_GROUPS;
+use softcbf_generated::KindGroup;
 
 use crate::model::Model;
 use crate::record::Record;
@@ -98,12 +104,15 @@ const FONT: &str = "sans-serif";
 pub const COLUMN_WIDTH: u32 = 660;
 /// Width of the legend strip at the right \[px\].
 pub const LEGEND_WIDTH: u32 = 170;
-/// Height of a figure \[px\].
+/// Height of a figure with one row of barrier panels \[px\]; each further row (a robot
+/// with barriers of several kind groups) adds [`ROW_HEIGHT`].
 pub const FIGURE_HEIGHT: u32 = 1240;
 /// Height of the column-title band \[px\].
 const TITLE_HEIGHT: u32 = 44;
-/// Rows of panels: q, τ, τ − τ_nom, b.
-const ROWS: usize = 4;
+/// Rows of panels before the barriers: q, τ, τ − τ_nom.
+const COORDINATE_ROWS: usize = 3;
+/// Height of one row of panels \[px\].
+pub const ROW_HEIGHT: u32 = (FIGURE_HEIGHT - TITLE_HEIGHT) / (COORDINATE_ROWS as u32 + 1);
 /// Height of a panel's caption \[px\].
 const CAPTION_HEIGHT: u32 = 26;
 /// Height of the time-axis labels under a panel \[px\].
@@ -150,8 +159,10 @@ pub struct FigureOptions<'a> {
     /// Where the time axis is split.
     pub split: Split,
     /// How many barriers each module owns, in order (e.g. `sim::barriers_per_module` of
-    /// the model's table). Empty: from the barrier labels (`module K …`), else evenly over
-    /// the `n/3` modules, else one module.
+    /// the model's table): how the one row of barrier panels of a robot with plate corners
+    /// only is split into modules (rows per kind group take the module from the model or
+    /// the labels). Empty: from the barrier labels (`module K …`), else evenly over the
+    /// `n/3` modules, else one module.
     pub barriers_per_module: &'a [usize],
     /// The robot the records are of: with it, [`write_figures`] also draws the 3-D view
     /// (`robot.png`, `robot.svg`; [`robot_view::draw_robot_views`]).
@@ -228,28 +239,70 @@ impl LabelGrid {
     }
 }
 
+/// One row of barrier panels: the barriers it shows, their legend and value axis, and in
+/// each column those that reach zero.
+struct BarrierRow {
+    /// The kind group of its barriers; `None` when one row shows every barrier and their
+    /// kinds are not known (labels of no known kind).
+    group: Option<KindGroup>,
+    /// Whether it is the only row of barriers (then captioned as in the paper's Fig. 4).
+    only: bool,
+    /// Its barriers (record columns), in order.
+    barriers: Vec<usize>,
+    /// The modules (0-based) its barriers belong to, ascending: each has its dash.
+    modules: Vec<usize>,
+    /// Name of each barrier colour (the label without its `module K`).
+    key_names: Vec<String>,
+    /// Value range of the panels, shared by the columns.
+    range: std::ops::Range<f64>,
+    /// Per column, the barriers that reach zero, highest last value first.
+    active: Vec<Vec<Active>>,
+    /// Layout of their labels.
+    grid: LabelGrid,
+}
+
+impl BarrierRow {
+    /// Caption and value-axis label of its panels.
+    fn text(&self) -> (String, String) {
+        let unit = self.group.map_or("m", KindGroup::unit);
+        let caption = match self.group {
+            Some(group) if !self.only => {
+                format!(
+                    "barrier values b: {} (those reaching 0 labelled)",
+                    group.title()
+                )
+            }
+            _ => "barrier values b (those reaching 0 labelled)".to_string(),
+        };
+        (caption, format!("b [{unit}]"))
+    }
+
+    /// Title of its legend.
+    fn legend_title(&self) -> &'static str {
+        match self.group {
+            Some(group) if !self.only => group.title(),
+            _ => "barriers",
+        }
+    }
+}
+
 /// What one figure shows: validated input, shared axis ranges, the time split and the
 /// barriers to label.
 struct Figure<'a> {
     panels: &'a [(&'a str, &'a Record)],
     set_point: &'a [f64],
-    /// Module of each barrier, and its index within the module.
-    barrier_module: Vec<usize>,
-    barrier_index: Vec<usize>,
-    modules: usize,
-    /// Name of each barrier colour (the label without its `module K` prefix).
-    key_names: Vec<String>,
+    /// Line style of each barrier: colour per barrier of a module within its row, dash
+    /// per module.
+    barrier_styles: Vec<LineStyle>,
     /// Time window and split point.
     window: (f64, f64),
     split: Option<f64>,
-    /// Value ranges of the rows (q, τ, τ − τ_nom, b), shared by all columns.
-    rows: [std::ops::Range<f64>; ROWS],
+    /// Value ranges of the rows q, τ, τ − τ_nom, shared by all columns.
+    rows: [std::ops::Range<f64>; COORDINATE_ROWS],
+    /// The rows of barrier panels, top to bottom.
+    barrier_rows: Vec<BarrierRow>,
     /// Names of the coordinates as shown (`Δx₁`).
     labels: Vec<String>,
-    /// Per panel, the barriers that reach zero, highest last value first.
-    active: Vec<Vec<Active>>,
-    /// Layout of their labels.
-    grid: LabelGrid,
 }
 
 /// The values of one series of `record` within the window.
@@ -339,6 +392,125 @@ pub fn time_axis(
     Ok(TimeAxis { window, split })
 }
 
+/// How the barriers of a figure are grouped into rows of panels: per row its group (if
+/// known), its barriers, and per barrier its module and colour index within the row.
+struct Grouping {
+    rows: Vec<(Option<KindGroup>, Vec<usize>)>,
+    module: Vec<usize>,
+    key: Vec<usize>,
+    /// Per row, the name of each colour index.
+    key_names: Vec<Vec<String>>,
+}
+
+/// The kind group and module (0-based) of each barrier: from the model's barrier table when
+/// it has `labels.len()` rows, else from the labels as the table writes them; `None` if
+/// some barrier's kind cannot be told.
+fn kinds_of(labels: &[String], model: Option<&Model>) -> Option<Vec<(KindGroup, usize)>> {
+    if let Some(model) = model
+        && model.nb() == labels.len()
+    {
+        return Some(
+            model
+                .generated
+                .barrier_table()
+                .iter()
+                .map(|info| (info.kind.group(), info.module))
+                .collect(),
+        );
+    }
+    labels.iter().map(|label| kind_of_label(label)).collect()
+}
+
+/// The kind group and module (0-based) a barrier label names: `module K corner J`,
+/// `module K elongation min|max`, `module K bend`, `obstacle O module K …`.
+fn kind_of_label(label: &str) -> Option<(KindGroup, usize)> {
+    if let Some(rest) = label.strip_prefix("obstacle ") {
+        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+        let (module, _) = split_module(rest[digits..].trim_start())?;
+        return (digits > 0).then_some((KindGroup::Obstacle, module - 1));
+    }
+    let (module, rest) = split_module(label)?;
+    let group = match rest.split(' ').next()? {
+        "corner" => KindGroup::PlateCorner,
+        "elongation" => KindGroup::Elongation,
+        "bend" => KindGroup::Bend,
+        _ => return None,
+    };
+    Some((group, module - 1))
+}
+
+/// The label without its `module K` words (`obstacle 1 module 2 arc 1` → `obstacle 1 arc
+/// 1`, `module 2 bend` → `bend`); the label itself if it has none.
+fn without_module(label: &str) -> String {
+    let words: Vec<&str> = label.split(' ').collect();
+    let at = words.windows(2).position(|pair| {
+        pair[0] == "module" && !pair[1].is_empty() && pair[1].bytes().all(|b| b.is_ascii_digit())
+    });
+    match at {
+        Some(k) => [&words[..k], &words[k + 2..]].concat().join(" "),
+        None => label.to_string(),
+    }
+}
+
+impl Grouping {
+    /// One row of every barrier, split into modules by `per_module` (the paper's Fig. 4).
+    fn single(per_module: &[usize], labels: &[String], group: Option<KindGroup>) -> Grouping {
+        let module: Vec<usize> = per_module
+            .iter()
+            .enumerate()
+            .flat_map(|(module, &count)| std::iter::repeat_n(module, count))
+            .collect();
+        let key: Vec<usize> = per_module.iter().flat_map(|&count| 0..count).collect();
+        let most = per_module.iter().copied().max().unwrap_or(0);
+        let names = (0..most)
+            .map(|k| {
+                let j = key.iter().position(|&index| index == k);
+                j.and_then(|j| strip_module(&labels[j]))
+                    .map_or_else(|| format!("#{}", k + 1), str::to_string)
+            })
+            .collect();
+        Grouping {
+            rows: vec![(group, (0..module.len()).collect())],
+            module,
+            key,
+            key_names: vec![names],
+        }
+    }
+
+    /// One row per kind group present, in the order of [`KIND_GROUPS`]; within a row a
+    /// colour per distinct label without its module (`corner 3`, `elongation max`).
+    fn by_kind(kinds: &[(KindGroup, usize)], labels: &[String]) -> Grouping {
+        let mut grouping = Grouping {
+            rows: Vec::new(),
+            module: kinds.iter().map(|&(_, module)| module).collect(),
+            key: vec![0; kinds.len()],
+            key_names: Vec::new(),
+        };
+        for group in KIND_GROUPS {
+            let barriers: Vec<usize> = (0..kinds.len()).filter(|&j| kinds[j].0 == group).collect();
+            if barriers.is_empty() {
+                continue;
+            }
+            let mut names: Vec<String> = Vec::new();
+            for &j in &barriers {
+                let name = labels
+                    .get(j)
+                    .map_or_else(|| format!("#{}", j + 1), |label| without_module(label));
+                grouping.key[j] = match names.iter().position(|n| *n == name) {
+                    Some(k) => k,
+                    None => {
+                        names.push(name);
+                        names.len() - 1
+                    }
+                };
+            }
+            grouping.rows.push((Some(group), barriers));
+            grouping.key_names.push(names);
+        }
+        grouping
+    }
+}
+
 impl<'a> Figure<'a> {
     fn new(
         panels: &'a [(&'a str, &'a Record)],
@@ -376,11 +548,11 @@ impl<'a> Figure<'a> {
             ));
         }
         let TimeAxis { window, split } = time_axis(panels, options)?;
+        let labels = first.columns().barrier_labels();
         let per_module = if !options.barriers_per_module.is_empty() {
             options.barriers_per_module.to_vec()
         } else {
-            modules_from_labels(first.columns().barrier_labels())
-                .unwrap_or_else(|| default_modules(n, m))
+            modules_from_labels(labels).unwrap_or_else(|| default_modules(n, m))
         };
         let total: usize = per_module.iter().sum();
         if total != m {
@@ -391,27 +563,22 @@ impl<'a> Figure<'a> {
                 total,
             ));
         }
-        let barrier_module: Vec<usize> = per_module
-            .iter()
-            .enumerate()
-            .flat_map(|(module, &count)| std::iter::repeat_n(module, count))
-            .collect();
-        let barrier_index: Vec<usize> = per_module.iter().flat_map(|&count| 0..count).collect();
-        let most = per_module.iter().copied().max().unwrap_or(0);
-        let labels = first.columns().barrier_labels();
-        let key_names = (0..most)
-            .map(|k| {
-                let j = barrier_index.iter().position(|&index| index == k);
-                j.and_then(|j| strip_module(&labels[j]))
-                    .map_or_else(|| format!("#{}", k + 1), str::to_string)
-            })
-            .collect();
+        let grouping = match kinds_of(labels, options.model) {
+            Some(kinds) if kinds.iter().any(|&(g, _)| g != KindGroup::PlateCorner) => {
+                Grouping::by_kind(&kinds, labels)
+            }
+            Some(kinds) if !kinds.is_empty() => {
+                Grouping::single(&per_module, labels, Some(KindGroup::PlateCorner))
+            }
+            _ => Grouping::single(&per_module, labels, None),
+        };
 
-        let mut rows = [Range::EMPTY; ROWS];
+        let mut rows = [Range::EMPTY; COORDINATE_ROWS];
         rows[0].cover(set_point.iter().copied());
         rows[2].cover([0.0]);
-        rows[3].cover([0.0]);
+        // Per record, each barrier's lowest and last finite value in the window.
         let mut lowest = Vec::with_capacity(panels.len());
+        let mut ranges = vec![Range::EMPTY; m];
         for (_, record) in panels {
             let times: Vec<f64> = record.times().collect();
             for i in 0..n {
@@ -421,9 +588,9 @@ impl<'a> Figure<'a> {
                 rows[2].cover(windowed(&times, action, window));
             }
             let mut minima = Vec::with_capacity(m);
-            for j in 0..m {
+            for (j, whole) in ranges.iter_mut().enumerate() {
                 let b = windowed(&times, record.b(j), window);
-                rows[3].cover(b.iter().copied());
+                whole.cover(b.iter().copied());
                 let mut range = Range::EMPTY;
                 range.cover(b.iter().copied());
                 let last = b.iter().rev().copied().find(|v| v.is_finite());
@@ -431,61 +598,97 @@ impl<'a> Figure<'a> {
             }
             lowest.push(minima);
         }
-        let b_range = rows[3].padded();
-        let tolerance = ACTIVE_TOLERANCE.max(0.002 * (b_range.end - b_range.start));
-        let active: Vec<Vec<Active>> = lowest
-            .iter()
-            .map(|minima| {
-                let mut active: Vec<Active> = minima
+        let only = grouping.rows.len() == 1;
+        let barrier_rows = grouping
+            .rows
+            .into_iter()
+            .zip(grouping.key_names)
+            .map(|((group, barriers), key_names)| {
+                let mut range = Range::EMPTY;
+                range.cover([0.0]);
+                for &j in &barriers {
+                    range.cover([ranges[j].low, ranges[j].high]);
+                }
+                let range = range.padded();
+                let tolerance = ACTIVE_TOLERANCE.max(0.002 * (range.end - range.start));
+                let active: Vec<Vec<Active>> = lowest
                     .iter()
-                    .enumerate()
-                    .filter_map(|(barrier, &(low, last))| {
-                        (low <= tolerance).then_some(Active {
-                            barrier,
-                            low,
-                            last: last.unwrap_or(low),
-                        })
+                    .map(|minima| {
+                        let mut active: Vec<Active> = barriers
+                            .iter()
+                            .filter_map(|&barrier| {
+                                let (low, last) = minima[barrier];
+                                (low <= tolerance).then_some(Active {
+                                    barrier,
+                                    low,
+                                    last: last.unwrap_or(low),
+                                })
+                            })
+                            .collect();
+                        active.sort_by(|a, b| {
+                            b.last.total_cmp(&a.last).then(a.barrier.cmp(&b.barrier))
+                        });
+                        active
                     })
                     .collect();
-                active.sort_by(|a, b| b.last.total_cmp(&a.last).then(a.barrier.cmp(&b.barrier)));
-                active
+                let row_labels: Vec<String> = barriers.iter().map(|&j| labels[j].clone()).collect();
+                let grid = LabelGrid::new(&row_labels);
+                let mut modules: Vec<usize> =
+                    barriers.iter().map(|&j| grouping.module[j]).collect();
+                modules.sort_unstable();
+                modules.dedup();
+                if group.is_none() || only {
+                    // The paper's figure: every module of the split, even one without barriers.
+                    modules = (0..per_module.len().max(1)).collect();
+                }
+                BarrierRow {
+                    group,
+                    only,
+                    barriers,
+                    modules,
+                    key_names,
+                    range: room_for_labels(range, &active, grid),
+                    active,
+                    grid,
+                }
             })
             .collect();
-        let grid = LabelGrid::new(first.columns().barrier_labels());
-        let mut rows = rows.map(Range::padded);
-        rows[3] = room_for_labels(rows[3].clone(), &active, grid);
+        let barrier_styles = (0..m)
+            .map(|j| barrier_style(grouping.module[j], grouping.key[j]))
+            .collect();
         Ok(Figure {
             panels,
             set_point,
-            barrier_module,
-            barrier_index,
-            modules: per_module.len(),
-            key_names,
+            barrier_styles,
             window,
             split,
-            rows,
+            rows: rows.map(Range::padded),
+            barrier_rows,
             labels: first
                 .columns()
                 .coordinate_names()
                 .iter()
                 .map(|name| display_name(name))
                 .collect(),
-            active,
-            grid,
         })
+    }
+
+    /// Rows of panels: q, τ, τ − τ_nom and the barrier rows.
+    fn row_count(&self) -> usize {
+        COORDINATE_ROWS + self.barrier_rows.len()
     }
 
     fn size(&self) -> (u32, u32) {
         (
             COLUMN_WIDTH * self.panels.len() as u32 + LEGEND_WIDTH,
-            FIGURE_HEIGHT,
+            TITLE_HEIGHT + ROW_HEIGHT * self.row_count() as u32,
         )
     }
 }
 
 /// Height of the plot of one panel \[px\] (the row less its caption, time labels, margins).
 fn plot_height() -> u32 {
-    (FIGURE_HEIGHT - TITLE_HEIGHT) / ROWS as u32 - CAPTION_HEIGHT - X_LABEL_HEIGHT - 2 * PLOT_MARGIN
+    ROW_HEIGHT - CAPTION_HEIGHT - X_LABEL_HEIGHT - 2 * PLOT_MARGIN
 }
 
 /// The barrier axis `range` lowered so that, in every panel, the labels of the barriers that
@@ -603,12 +806,16 @@ pub fn write_figures(
 }
 
 /// Draws `<stem>.png` and `<stem>.svg` in `out_dir` (created if missing) and returns their
-/// paths. Four rows of panels per column: (a) the coordinates with their set points
-/// dotted, (b) the applied `τ`, (c) the filter's action `τ − τ_nom`, (d) the barriers, the
-/// ones that reach zero labelled. Coordinates are told apart by [`coordinate_style`];
-/// barriers by colour within a module and dash per module ([`barrier_style`]). The figure
-/// is `660·columns + 170` × 1240 pixels; the value range of each row is shared by the
-/// columns so they compare at a glance, and so is the time axis, split per `options`.
+/// paths. Rows of panels per column: (a) the coordinates with their set points dotted,
+/// (b) the applied `τ`, (c) the filter's action `τ − τ_nom`, (d) the barriers, the ones
+/// that reach zero labelled. A robot with barriers beyond its plate corners (kinds from
+/// [`FigureOptions::model`]'s barrier table, else from the barrier labels) gets a row of
+/// barrier panels per [`KindGroup`] present instead of (d), in the order of
+/// [`KIND_GROUPS`], each with its unit and zero line. Coordinates are told apart by
+/// [`coordinate_style`]; barriers by colour within a module and dash per module
+/// ([`barrier_style`]). The figure is `660·columns + 170` × `1240 + 299·(groups − 1)`
+/// pixels ([`FIGURE_HEIGHT`], [`ROW_HEIGHT`]); the value range of each row is shared by
+/// the columns so they compare at a glance, and so is the time axis, split per `options`.
 pub fn draw_figures(
     out_dir: &Path,
     stem: &str,
@@ -655,5 +862,76 @@ pub fn controller_title(controller: &str) -> &str {
         "filter" => "safety filter (HOCBF-QP)",
         "pd" => "PD+ only",
         other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_tell_the_kind_group_and_module() {
+        let cases = [
+            ("module 1 corner 3", Some((KindGroup::PlateCorner, 0))),
+            (
+                "module 12 elongation min",
+                Some((KindGroup::Elongation, 11)),
+            ),
+            ("module 2 elongation max", Some((KindGroup::Elongation, 1))),
+            ("module 2 bend", Some((KindGroup::Bend, 1))),
+            (
+                "obstacle 1 module 2 corner 4",
+                Some((KindGroup::Obstacle, 1)),
+            ),
+            ("obstacle 10 module 1 arc 2", Some((KindGroup::Obstacle, 0))),
+            ("module 0 corner 1", None),
+            ("module 1 twist", None),
+            ("obstacle module 1 arc 2", None),
+            ("corner 1", None),
+            ("#1", None),
+        ];
+        for (label, expected) in cases {
+            assert_eq!(kind_of_label(label), expected, "{label}");
+        }
+        assert_eq!(without_module("module 2 corner 6"), "corner 6");
+        assert_eq!(without_module("module 2 bend"), "bend");
+        assert_eq!(
+            without_module("obstacle 1 module 2 arc 1"),
+            "obstacle 1 arc 1"
+        );
+        assert_eq!(without_module("b1"), "b1");
+    }
+
+    #[test]
+    fn rows_group_barriers_by_kind_with_a_colour_per_name() {
+        let labels: Vec<String> = [
+            "module 1 corner 1",
+            "module 2 corner 1",
+            "module 1 bend",
+            "module 2 bend",
+            "obstacle 1 module 2 centre",
+            "obstacle 1 module 1 arc 1",
+        ]
+        .map(String::from)
+        .to_vec();
+        let kinds: Vec<(KindGroup, usize)> =
+            labels.iter().map(|l| kind_of_label(l).unwrap()).collect();
+        let grouping = Grouping::by_kind(&kinds, &labels);
+        let rows: Vec<(Option<KindGroup>, Vec<usize>)> = grouping.rows.clone();
+        assert_eq!(
+            rows,
+            [
+                (Some(KindGroup::PlateCorner), vec![0, 1]),
+                (Some(KindGroup::Bend), vec![2, 3]),
+                (Some(KindGroup::Obstacle), vec![4, 5]),
+            ]
+        );
+        assert_eq!(grouping.module, [0, 1, 0, 1, 1, 0]);
+        // Same name in two modules: one colour, told apart by the module's dash.
+        assert_eq!(grouping.key, [0, 0, 0, 0, 0, 1]);
+        assert_eq!(
+            grouping.key_names[2],
+            ["obstacle 1 centre", "obstacle 1 arc 1"]
+        );
     }
 }

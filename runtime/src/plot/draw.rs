@@ -1,6 +1,6 @@
-//! Drawing one figure on a plotters backend (PNG or SVG): the column titles, the four
-//! panels of each column (time axis split or not), the labels of the barriers that reach
-//! zero, and the legend strip.
+//! Drawing one figure on a plotters backend (PNG or SVG): the column titles, the panels of
+//! each column (q, τ, τ − τ_nom, then a row of barriers per kind group; time axis split or
+//! not), the labels of the barriers that reach zero, and the legend strip.
 
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
@@ -11,8 +11,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use super::series::{envelope, tick_decimals, window};
 use super::style::{LineStyle, SET_POINT_DASH, barrier_style, coordinate_style, module_dash};
 use super::{
-    CAPTION_HEIGHT, COLUMN_WIDTH, FONT, Figure, LABEL_FONT, LABEL_LINE, LABEL_SAMPLE, MARGIN_LEFT,
-    MARGIN_RIGHT, PLOT_MARGIN, ROWS, SPLIT_SHARE, TITLE_HEIGHT, X_LABEL_HEIGHT, Y_LABEL_WIDTH,
+    BarrierRow, CAPTION_HEIGHT, COLUMN_WIDTH, COORDINATE_ROWS, FONT, Figure, LABEL_FONT,
+    LABEL_LINE, LABEL_SAMPLE, LEGEND_WIDTH, MARGIN_LEFT, MARGIN_RIGHT, PLOT_MARGIN, SPLIT_SHARE,
+    TITLE_HEIGHT, X_LABEL_HEIGHT, Y_LABEL_WIDTH,
 };
 use crate::record::Record;
 
@@ -22,13 +23,37 @@ const SPLIT_GAP: u32 = 12;
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 type Area<DB> = DrawingArea<DB, Shift>;
 
-/// What each row of panels shows: caption and value-axis label.
-const ROW_TEXT: [(&str, &str); ROWS] = [
+/// What each row of coordinate panels shows: caption and value-axis label.
+const ROW_TEXT: [(&str, &str); COORDINATE_ROWS] = [
     ("generalized coordinates q (set points dotted)", "q [m]"),
     ("applied generalized force τ", "τ [N]"),
     ("filter action τ − τ_nom", "τ − τ_nom [N]"),
-    ("barrier values b (those reaching 0 labelled)", "b [m]"),
 ];
+
+/// Caption and value-axis label of row `r`.
+fn row_text(figure: &Figure, r: usize) -> (String, String) {
+    match barrier_row(figure, r) {
+        Some(row) => row.text(),
+        None => {
+            let (caption, axis) = ROW_TEXT[r.min(COORDINATE_ROWS - 1)];
+            (caption.to_string(), axis.to_string())
+        }
+    }
+}
+
+/// The barrier row that row `r` of panels is, if it is one.
+fn barrier_row<'f>(figure: &'f Figure, r: usize) -> Option<&'f BarrierRow> {
+    r.checked_sub(COORDINATE_ROWS)
+        .and_then(|k| figure.barrier_rows.get(k))
+}
+
+/// Value range of row `r`.
+fn row_range(figure: &Figure, r: usize) -> std::ops::Range<f64> {
+    match barrier_row(figure, r) {
+        Some(row) => row.range.clone(),
+        None => figure.rows[r.min(COORDINATE_ROWS - 1)].clone(),
+    }
+}
 
 fn rgb(style: LineStyle) -> RGBColor {
     let (r, g, b) = style.colour;
@@ -104,15 +129,19 @@ pub(super) fn draw<DB: DrawingBackend>(root: &Area<DB>, figure: &Figure) -> Resu
         ))
         .map_err(e)?;
         let times: Vec<f64> = record.times().collect();
-        for (r, area) in column.split_evenly((ROWS, 1)).iter().enumerate() {
+        let rows = figure.row_count();
+        for (r, area) in column.split_evenly((rows, 1)).iter().enumerate() {
             draw_panel(root, area, figure, c, r, record, &times)?;
         }
     }
     let (_, height) = legend.dim_in_pixel();
-    let row_height = height / ROWS as u32;
-    let (upper, lower) = legend.split_vertically(row_height * (ROWS as u32 - 1));
+    let row_height = height / figure.row_count() as u32;
+    let (upper, lower) = legend.split_vertically(row_height * COORDINATE_ROWS as u32);
     draw_coordinate_legend(&upper, figure).map_err(e)?;
-    draw_barrier_legend(&lower, figure).map_err(e)?;
+    let blocks = lower.split_evenly((figure.barrier_rows.len().max(1), 1));
+    for (row, block) in figure.barrier_rows.iter().zip(&blocks) {
+        draw_barrier_legend(block, row).map_err(e)?;
+    }
     Ok(())
 }
 
@@ -126,7 +155,7 @@ fn build_chart<'a, DB: DrawingBackend>(
     first: bool,
 ) -> Result<Chart<'a, DB>, String> {
     let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
-    let y_range = figure.rows[r].clone();
+    let y_range = row_range(figure, r);
     // About one time label per 80 px.
     let x_labels = (area.dim_in_pixel().0 / 80).clamp(2, 10) as usize;
     let y_labels = 6;
@@ -160,8 +189,9 @@ fn build_chart<'a, DB: DrawingBackend>(
         .axis_desc_style((FONT, 16))
         .bold_line_style(RGBColor(222, 222, 222))
         .light_line_style(RGBColor(244, 244, 244));
+    let (_, axis) = row_text(figure, r);
     if first {
-        mesh.y_desc(ROW_TEXT[r].1);
+        mesh.y_desc(axis);
     }
     mesh.draw().map_err(e)?;
     Ok(chart)
@@ -179,11 +209,12 @@ fn draw_panel<DB: DrawingBackend>(
 ) -> Result<(), String> {
     let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
     let (caption, plot) = area.split_vertically(CAPTION_HEIGHT);
-    let letter = (b'a' + ((ROWS * c + r) % 26) as u8) as char;
+    let letter = (b'a' + ((figure.row_count() * c + r) % 26) as u8) as char;
     let (w, h) = caption.dim_in_pixel();
+    let (text, _) = row_text(figure, r);
     caption
         .draw(&Text::new(
-            format!("({letter}) {}", ROW_TEXT[r].0),
+            format!("({letter}) {text}"),
             (w as i32 / 2, h as i32 / 2 + 2),
             TextStyle::from((FONT, 18).into_font()).pos(Pos::new(HPos::Center, VPos::Center)),
         ))
@@ -222,10 +253,10 @@ fn draw_panel<DB: DrawingBackend>(
     if let [left, right] = &built[..] {
         draw_break(root, left, right).map_err(e)?;
     }
-    if r == ROWS - 1
+    if let Some(row) = barrier_row(figure, r)
         && let (Some(first), Some(last)) = (built.first(), built.last())
     {
-        draw_active_labels(root, first, last, figure, c).map_err(e)?;
+        draw_active_labels(root, first, last, figure, row, c).map_err(e)?;
     }
     Ok(())
 }
@@ -240,8 +271,9 @@ fn draw_data<DB: DrawingBackend>(
 ) -> Result<(), String> {
     let span = chart.x_range();
     let n = record.columns().n();
-    if r == 2 || r == 3 {
-        let zero = if r == 3 {
+    let row = barrier_row(figure, r);
+    if r == 2 || row.is_some() {
+        let zero = if row.is_some() {
             BLACK.stroke_width(1)
         } else {
             RGBColor(120, 120, 120).stroke_width(1)
@@ -250,8 +282,8 @@ fn draw_data<DB: DrawingBackend>(
             .draw_series(LineSeries::new([(span.start, 0.0), (span.end, 0.0)], zero))
             .map_err(|e| e.to_string())?;
     }
-    match r {
-        0..=2 => {
+    match row {
+        None => {
             for i in 0..n {
                 let values: Vec<f64> = match r {
                     0 => record.q(i).collect(),
@@ -280,11 +312,10 @@ fn draw_data<DB: DrawingBackend>(
                 }
             }
         }
-        _ => {
-            for j in 0..record.columns().m() {
+        Some(row) => {
+            for &j in &row.barriers {
                 let values: Vec<f64> = record.b(j).collect();
-                let style = barrier_style(figure.barrier_module[j], figure.barrier_index[j]);
-                draw_series(chart, times, &values, style)?;
+                draw_series(chart, times, &values, figure.barrier_styles[j])?;
             }
         }
     }
@@ -311,7 +342,7 @@ fn draw_break<DB: DrawingBackend>(
     Ok(())
 }
 
-/// The labels of column `c`'s barriers that reach zero, each with a sample of its line:
+/// The labels of column `c`'s barriers of `row` that reach zero, each with a sample of its line:
 /// a block right-aligned in the panel (from `first` part to `last`) just below the lowest
 /// value of these barriers, hence below every line, on a white ground.
 fn draw_active_labels<DB: DrawingBackend>(
@@ -319,9 +350,12 @@ fn draw_active_labels<DB: DrawingBackend>(
     first: &Chart<DB>,
     last: &Chart<DB>,
     figure: &Figure,
+    row: &BarrierRow,
     c: usize,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    let active = &figure.active[c];
+    let Some(active) = row.active.get(c) else {
+        return Ok(());
+    };
     let Some(lowest) = active.iter().map(|a| a.low).reduce(f64::min) else {
         return Ok(());
     };
@@ -331,7 +365,7 @@ fn draw_active_labels<DB: DrawingBackend>(
     let (_, top) = first.backend_coord(&(first.x_range().start, lowest));
     let font =
         TextStyle::from((FONT, LABEL_FONT).into_font()).pos(Pos::new(HPos::Left, VPos::Center));
-    let grid = figure.grid;
+    let grid = row.grid;
     let line = LABEL_LINE as i32;
     let columns = grid.columns.min(active.len()).max(1);
     let block_left = (right_x.end - 4 - columns as i32 * grid.cell as i32).max(left_x.start);
@@ -349,10 +383,7 @@ fn draw_active_labels<DB: DrawingBackend>(
     for (k, a) in active.iter().enumerate() {
         let x = block_left + (k % columns) as i32 * grid.cell as i32 + 4;
         let y = block_top + line / 2 + line * (k / columns) as i32;
-        let style = barrier_style(
-            figure.barrier_module[a.barrier],
-            figure.barrier_index[a.barrier],
-        );
+        let style = figure.barrier_styles[a.barrier];
         let shape = rgb(style).stroke_width(2);
         let points = vec![(x, y), (x + LABEL_SAMPLE as i32 - 8, y)];
         match style.dash {
@@ -374,7 +405,6 @@ fn draw_entries<DB: DrawingBackend>(
     title: &str,
     entries: Vec<Entry>,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    let font = (FONT, 16).into_font();
     let top = 48;
     area.draw(&Text::new(
         title.to_string(),
@@ -385,6 +415,16 @@ fn draw_entries<DB: DrawingBackend>(
     let (_, height) = area.dim_in_pixel();
     let room = (height as i32 - top - 8).max(0);
     let line_height = (room / entries.len().max(1) as i32).clamp(8, 22);
+    // Names too long for the strip are all drawn smaller (down to 11 px) to fit.
+    let fits = |size: u32| {
+        let font = (FONT, size).into_font();
+        entries.iter().all(|(label, ..)| {
+            font.box_size(label)
+                .map_or(true, |(w, _)| w + 52 + 4 <= LEGEND_WIDTH)
+        })
+    };
+    let size = (11..=16).rev().find(|&size| fits(size)).unwrap_or(11);
+    let shift = (16 - size as i32) / 2;
     for (k, (label, colour, dash, width)) in entries.into_iter().enumerate() {
         let y = top + line_height * k as i32;
         let points = vec![(8, y), (44, y)];
@@ -393,7 +433,11 @@ fn draw_entries<DB: DrawingBackend>(
             None => area.draw(&PathElement::new(points, style))?,
             Some((on, off)) => area.draw(&DashedPathElement::new(points, on, off, style))?,
         }
-        area.draw(&Text::new(label, (52, y - 9), font.clone()))?;
+        area.draw(&Text::new(
+            label,
+            (52, y - 9 + shift),
+            (FONT, size).into_font(),
+        ))?;
     }
     Ok(())
 }
@@ -423,15 +467,15 @@ fn draw_coordinate_legend<DB: DrawingBackend>(
     draw_entries(area, "coordinates", entries)
 }
 
-/// The legend of the barriers (row d): the dash of each module, the colour of each
-/// barrier within a module, the zero line.
+/// The legend of a row of barriers: the dash of each module, the colour of each barrier
+/// within a module, the zero line.
 fn draw_barrier_legend<DB: DrawingBackend>(
     area: &Area<DB>,
-    figure: &Figure,
+    row: &BarrierRow,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let mut entries: Vec<Entry> = Vec::new();
-    if figure.modules > 1 {
-        for module in 0..figure.modules {
+    if row.modules.len() > 1 || row.modules.iter().any(|&module| module > 0) {
+        for &module in &row.modules {
             entries.push((
                 format!("module {}", module + 1),
                 RGBColor(60, 60, 60),
@@ -440,9 +484,9 @@ fn draw_barrier_legend<DB: DrawingBackend>(
             ));
         }
     }
-    for (k, name) in figure.key_names.iter().enumerate() {
+    for (k, name) in row.key_names.iter().enumerate() {
         entries.push((name.clone(), rgb(barrier_style(0, k)), None, 2));
     }
     entries.push(("b = 0".to_string(), BLACK, None, 1));
-    draw_entries(area, "barriers", entries)
+    draw_entries(area, row.legend_title(), entries)
 }

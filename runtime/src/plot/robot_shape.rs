@@ -1,13 +1,15 @@
 //! The 3-D shape of a robot at one state, from the generated kinematics (backbone arcs,
-//! tendons, plates, every barrier's corner and its foot on the plate below), and its
-//! orthographic projection and clipping for drawing.
+//! tendons, plates, every corner barrier's corner and its foot on the plate below, every
+//! environment barrier's watched point), the obstacles, and the orthographic projection
+//! and clipping for drawing.
 //!
 //! Points along a segment come from the generated `segment_transforms` evaluated with the
 //! segment's rest length and coordinates scaled by the arc fraction `s` (docs/model.md §2:
 //! the arc of bend `sθ` and length `sL`), so nothing here divides by `θ`.
 
+use softcbf_description::barriers::{Shape as Region, WatchedPoint};
 use softcbf_description::layout::{Param, param_layout};
-use softcbf_generated::BarrierKind;
+use softcbf_generated::{BarrierKind, Point as Watch};
 
 use crate::model::Model;
 
@@ -65,8 +67,10 @@ pub(super) struct Kinematics<'m> {
     model: &'m Model,
     /// Index of `L0_i` in the parameter vector, per module.
     rest_length: Vec<usize>,
-    /// Index of `ε` of each barrier's corner in the parameter vector (table order).
+    /// Index of `ε` of each corner barrier's corner in the parameter vector (table order).
     margin: Vec<Option<usize>>,
+    /// Each environment barrier's watched point (table order).
+    watched: Vec<Option<WatchedAt>>,
     params: Vec<f64>,
     q: Vec<f64>,
     transforms: Vec<Pose>,
@@ -90,10 +94,17 @@ impl<'m> Kinematics<'m> {
                 _ => None,
             })
             .collect();
+        let watched = model
+            .generated
+            .barrier_table()
+            .iter()
+            .map(|info| watched_at(model, info))
+            .collect();
         Kinematics {
             model,
             rest_length,
             margin,
+            watched,
             params: model.params.clone(),
             q: vec![0.0; model.nq()],
             transforms: vec![IDENTITY; model.n_modules()],
@@ -186,14 +197,17 @@ impl<'m> Kinematics<'m> {
             .barrier_table()
             .iter()
             .zip(&self.margin)
-            .filter_map(|(info, margin)| Some((info.corner()?, info, margin)))
-            .map(|(corner, info, margin)| {
-                let module = &modules[info.module];
-                let phi = module.corner_angles[corner];
+            .map(|(info, margin)| {
+                let corner = info.corner()?;
+                let module = modules.get(info.module)?;
+                let phi = *module.corner_angles.get(corner)?;
                 let r = module.corner_radius;
-                let local = apply(&segments[info.module], [r * phi.cos(), r * phi.sin(), 0.0]);
-                let base = &poses[info.module];
-                CornerGap {
+                let local = apply(
+                    segments.get(info.module)?,
+                    [r * phi.cos(), r * phi.sin(), 0.0],
+                );
+                let base = poses.get(info.module)?;
+                Some(CornerGap {
                     module: info.module,
                     corner: apply(base, local),
                     foot: apply(base, [local[0], local[1], 0.0]),
@@ -201,20 +215,251 @@ impl<'m> Kinematics<'m> {
                     margin: margin
                         .and_then(|k| model.params.get(k).copied())
                         .unwrap_or(0.0),
-                }
+                })
             })
             .collect();
+        let mut watched = Vec::with_capacity(self.watched.len());
+        for k in 0..self.watched.len() {
+            let point = match self.watched[k] {
+                Some(WatchedAt {
+                    module,
+                    obstacle,
+                    plate: Some(local),
+                    ..
+                }) => poses.get(module + 1).map(|top| WatchedMark {
+                    module,
+                    obstacle,
+                    at: apply(top, local),
+                    arc: false,
+                }),
+                Some(WatchedAt {
+                    module,
+                    obstacle,
+                    arc: Some(s),
+                    ..
+                }) => {
+                    let segments = self.segments_at(q, s);
+                    match (poses.get(module), segments.get(module)) {
+                        (Some(base), Some(segment)) => Some(WatchedMark {
+                            module,
+                            obstacle,
+                            at: apply(&compose(base, segment), [0.0; 3]),
+                            arc: true,
+                        }),
+                        _ => None,
+                    }
+                }
+                _ => None,
+            };
+            watched.push(point);
+        }
         Shape {
             backbones,
             tendons,
             plates,
             corners,
+            watched,
             poses,
         }
     }
 }
 
-/// Where a barrier's corner is and how high it sits above the plate below
+/// What an environment barrier watches: a point fixed in its module's top plate, or on
+/// its module's backbone at an arc fraction.
+#[derive(Clone, Copy, Debug)]
+struct WatchedAt {
+    module: usize,
+    obstacle: usize,
+    /// The point in the top plate's frame \[m\].
+    plate: Option<Point>,
+    /// The arc fraction `s`.
+    arc: Option<f64>,
+}
+
+/// The watched point of barrier `info`, if it is an environment barrier of a point the
+/// robot's obstacles describe.
+fn watched_at(model: &Model, info: &softcbf_generated::BarrierInfo) -> Option<WatchedAt> {
+    let obstacle = info.obstacle?;
+    let at = |plate, arc| WatchedAt {
+        module: info.module,
+        obstacle,
+        plate,
+        arc,
+    };
+    match info.point? {
+        Watch::Corner(j) => {
+            let module = model.robot.modules.get(info.module)?;
+            let phi = *module.corner_angles.get(j)?;
+            let r = module.corner_radius;
+            Some(at(Some([r * phi.cos(), r * phi.sin(), 0.0]), None))
+        }
+        Watch::Centre => Some(at(Some([0.0; 3]), None)),
+        Watch::Listed(k) | Watch::Arc(k) => {
+            match model.robot.obstacles.get(obstacle)?.watch.get(k)?.point {
+                WatchedPoint::Listed(p) => Some(at(Some(p), None)),
+                WatchedPoint::Arc(s) => Some(at(None, Some(s))),
+                _ => None,
+            }
+        }
+    }
+}
+
+/// Where an environment barrier's watched point is.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct WatchedMark {
+    /// The module (0-based) whose top plate or backbone carries it.
+    pub module: usize,
+    /// The obstacle (0-based) it stays out of.
+    pub obstacle: usize,
+    /// The point in the world \[m\].
+    pub at: Point,
+    /// Whether it lies on the backbone (else in the top plate's frame).
+    pub arc: bool,
+}
+
+/// An obstacle in world coordinates, as drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Solid {
+    /// `|x − c| ≥ ρ`, kept `ε` away.
+    Sphere {
+        centre: Point,
+        radius: f64,
+        margin: f64,
+    },
+    /// `n·x ≥ o` (unit `n`, into the allowed side), kept `ε` away.
+    HalfSpace {
+        normal: Point,
+        offset: f64,
+        margin: f64,
+    },
+}
+
+impl Solid {
+    /// The point of the obstacle's surface nearest to `p` (`None` for the centre of a
+    /// sphere).
+    pub(super) fn nearest(&self, p: Point) -> Option<Point> {
+        match *self {
+            Solid::Sphere { centre, radius, .. } => {
+                let out = normalized(sub(p, centre))?;
+                Some(std::array::from_fn(|k| centre[k] + radius * out[k]))
+            }
+            Solid::HalfSpace { normal, offset, .. } => {
+                let above = dot(normal, p) - offset;
+                Some(std::array::from_fn(|k| p[k] - above * normal[k]))
+            }
+        }
+    }
+}
+
+/// The robot's obstacles, in file order, with finite geometry (a half-space's normal
+/// made unit; `None` for one that cannot be drawn).
+pub(super) fn solids(model: &Model) -> Vec<Option<Solid>> {
+    model
+        .robot
+        .obstacles
+        .iter()
+        .map(|obstacle| {
+            let margin = if obstacle.margin.is_finite() {
+                obstacle.margin
+            } else {
+                0.0
+            };
+            let solid = match obstacle.shape {
+                Region::Sphere { center, radius } => Solid::Sphere {
+                    centre: center,
+                    radius,
+                    margin,
+                },
+                Region::HalfSpace { normal, offset } => Solid::HalfSpace {
+                    normal: normalized(normal)?,
+                    offset,
+                    margin,
+                },
+            };
+            let finite = match solid {
+                Solid::Sphere { centre, radius, .. } => {
+                    centre.iter().all(|x| x.is_finite()) && radius.is_finite() && radius >= 0.0
+                }
+                Solid::HalfSpace { offset, .. } => offset.is_finite(),
+            };
+            finite.then_some(solid)
+        })
+        .collect()
+}
+
+/// An axis-aligned box `(low, high)` \[m\].
+pub(super) type Bounds = (Point, Point);
+
+/// The box around every point of `shapes`, grown by a quarter of its largest side (at
+/// least 2 cm) on each side; `None` without a finite point.
+pub(super) fn scene_box<'s>(shapes: impl Iterator<Item = &'s Shape>) -> Option<Bounds> {
+    let mut bounds: Option<Bounds> = None;
+    for p in shapes.flat_map(Shape::points) {
+        if !p.iter().all(|x| x.is_finite()) {
+            continue;
+        }
+        let (low, high) = bounds.get_or_insert((p, p));
+        *low = std::array::from_fn(|k| low[k].min(p[k]));
+        *high = std::array::from_fn(|k| high[k].max(p[k]));
+    }
+    let (low, high) = bounds?;
+    let side = (0..3).map(|k| high[k] - low[k]).fold(0.0, f64::max);
+    let grow = (0.25 * side).max(0.02);
+    Some((low.map(|x| x - grow), high.map(|x| x + grow)))
+}
+
+/// The polygon where the plane `n·x = offset` (unit `n`) cuts the box `bounds`, its
+/// corners in order around it; empty if the plane misses the box.
+pub(super) fn plane_patch(normal: Point, offset: f64, bounds: &Bounds) -> Vec<Point> {
+    let (low, high) = bounds;
+    let corner = |k: usize| -> Point {
+        std::array::from_fn(|c| if k >> c & 1 == 1 { high[c] } else { low[c] })
+    };
+    let mut points: Vec<Point> = Vec::new();
+    for a in 0..8usize {
+        for c in 0..3 {
+            let b = a | 1 << c;
+            if b == a {
+                continue;
+            }
+            let (pa, pb) = (corner(a), corner(b));
+            let (da, db) = (dot(normal, pa) - offset, dot(normal, pb) - offset);
+            if (da <= 0.0 && db >= 0.0 || da >= 0.0 && db <= 0.0) && da != db {
+                let t = da / (da - db);
+                points.push(std::array::from_fn(|k| pa[k] + t * (pb[k] - pa[k])));
+            }
+        }
+    }
+    if points.len() < 3 {
+        return Vec::new();
+    }
+    let n = points.len() as f64;
+    let centre: Point = std::array::from_fn(|k| points.iter().map(|p| p[k]).sum::<f64>() / n);
+    // Two directions in the plane, to order the points by angle about their centre.
+    let helper = if normal[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let Some(u) = normalized(cross(normal, helper)) else {
+        return Vec::new();
+    };
+    let v = cross(normal, u);
+    let angle = |p: &Point| {
+        let d = sub(*p, centre);
+        dot(d, v).atan2(dot(d, u))
+    };
+    points.sort_by(|a, b| angle(a).total_cmp(&angle(b)));
+    points.dedup_by(|a, b| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-12));
+    points
+}
+
+/// `a − b`.
+pub(super) fn sub(a: Point, b: Point) -> Point {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Where a corner barrier's corner is and how high it sits above the plate below
 /// (docs/model.md §3: `c_ij`, and `b_ij = c_ij − ε_ij`).
 #[derive(Clone, Debug)]
 pub(super) struct CornerGap {
@@ -239,8 +484,10 @@ pub(super) struct Shape {
     pub tendons: Vec<Vec<Vec<Point>>>,
     /// Corners of plate 0 (the base, drawn with module 1's polygon) to plate N.
     pub plates: Vec<Vec<Point>>,
-    /// Every barrier's corner, in the barrier table's order.
-    pub corners: Vec<CornerGap>,
+    /// Each corner barrier's corner, by barrier index (`None` for other barriers).
+    pub corners: Vec<Option<CornerGap>>,
+    /// Each environment barrier's watched point, by barrier index (`None` for others).
+    pub watched: Vec<Option<WatchedMark>>,
     /// World poses of plates 0 to N.
     pub poses: Vec<Pose>,
 }
@@ -254,6 +501,12 @@ impl Shape {
             .chain(self.tendons.iter().flatten().flatten())
             .chain(self.plates.iter().flatten())
             .copied()
+            .chain(self.watched.iter().flatten().map(|w| w.at))
+    }
+
+    /// The corner of barrier `j`, if it is a corner barrier.
+    pub(super) fn corner(&self, j: usize) -> Option<&CornerGap> {
+        self.corners.get(j)?.as_ref()
     }
 
     /// Whether every coordinate is finite.
@@ -407,6 +660,137 @@ mod tests {
         Model::new(Robot::paper_sim()).expect("the paper robot has a model")
     }
 
+    /// The paper robot with the structure `every_barrier` (softcbf-codegen's registry):
+    /// elongation and bend limits on both modules, a half-space and a sphere each watching
+    /// corner 3, the centre, a listed point and two backbone points of each module.
+    fn every_barrier() -> Model {
+        use softcbf_description::barriers::{Limits, Obstacle, Watched};
+        let mut robot = Robot::paper_sim();
+        robot.limits = vec![
+            Limits {
+                elongation: Some([-0.05, 0.03]),
+                elongation_margin: 0.002,
+                max_bend: Some(1.7),
+                bend_margin: 0.02,
+                gains: [None, None],
+            };
+            2
+        ];
+        let watch: Vec<Watched> = (0..2)
+            .flat_map(|module| {
+                [
+                    WatchedPoint::Corner(2),
+                    WatchedPoint::Centre,
+                    WatchedPoint::Listed([0.01, 0.03, -0.02]),
+                    WatchedPoint::Arc(0.3),
+                    WatchedPoint::Arc(0.7),
+                ]
+                .map(|point| Watched { module, point })
+            })
+            .collect();
+        let obstacle = |shape, margin| Obstacle {
+            shape,
+            margin,
+            gains: [None, None],
+            watch: watch.clone(),
+        };
+        robot.obstacles = vec![
+            obstacle(
+                Region::HalfSpace {
+                    normal: [-0.6, 0.0, 0.8],
+                    offset: -0.3,
+                },
+                0.004,
+            ),
+            obstacle(
+                Region::Sphere {
+                    center: [0.1, -0.05, 0.12],
+                    radius: 0.03,
+                },
+                0.005,
+            ),
+        ];
+        Model::new(robot).expect("every_barrier is generated")
+    }
+
+    #[test]
+    fn watched_points_are_where_the_generated_barriers_measure() {
+        let model = every_barrier();
+        let solids = solids(&model);
+        let table = model.generated.barrier_table();
+        let mut kinematics = Kinematics::new(&model);
+        for q in [
+            [0.0; 6],
+            [0.03, -0.02, -0.01, -0.01, 0.05, 0.02],
+            [0.08, 0.0, -0.05, 0.0, -0.06, -0.07],
+        ] {
+            let shape = kinematics.shape(&q);
+            let mut b = vec![0.0; model.nb()];
+            model.generated.barriers(&model.params, &q, &mut b);
+            let mut watched = 0;
+            for (j, info) in table.iter().enumerate() {
+                match (info.kind, &shape.watched[j], shape.corner(j)) {
+                    (BarrierKind::PlateCorner, None, Some(gap)) => {
+                        assert!((gap.height - gap.margin - b[j]).abs() < 1e-14, "{j}");
+                    }
+                    (BarrierKind::HalfSpace | BarrierKind::Sphere, Some(mark), None) => {
+                        watched += 1;
+                        assert_eq!(mark.module, info.module);
+                        assert_eq!(Some(mark.obstacle), info.obstacle);
+                        assert_eq!(mark.arc, matches!(info.point, Some(Watch::Arc(_))));
+                        // The docs/model.md formulas, on the point as drawn.
+                        let p = mark.at;
+                        let expected = match solids[mark.obstacle].unwrap() {
+                            Solid::Sphere {
+                                centre,
+                                radius,
+                                margin,
+                            } => dot(sub(p, centre), sub(p, centre)).sqrt() - radius - margin,
+                            Solid::HalfSpace {
+                                normal,
+                                offset,
+                                margin,
+                            } => dot(normal, p) - offset - margin,
+                        };
+                        assert!((expected - b[j]).abs() < 1e-14, "{}", info.label);
+                    }
+                    (_, None, None) => assert!(info.obstacle.is_none() && info.corner().is_none()),
+                    _ => panic!("barrier {j} ({}) drawn as the wrong kind", info.label),
+                }
+            }
+            assert_eq!(watched, 20);
+        }
+    }
+
+    #[test]
+    fn a_plane_cuts_the_box_in_a_convex_polygon_on_the_plane() {
+        let bounds: Bounds = ([-0.1, -0.2, 0.0], [0.3, 0.2, 0.25]);
+        let normal = normalized([-0.6, 0.2, 0.8]).unwrap();
+        let patch = plane_patch(normal, -0.05, &bounds);
+        assert!(patch.len() >= 3 && patch.len() <= 6, "{patch:?}");
+        for p in &patch {
+            assert!((dot(normal, *p) + 0.05).abs() < 1e-14);
+            for (k, x) in p.iter().enumerate() {
+                assert!(*x >= bounds.0[k] - 1e-14 && *x <= bounds.1[k] + 1e-14);
+            }
+        }
+        // Convex and in order: every turn has the same sign about the normal.
+        let turns: Vec<f64> = (0..patch.len())
+            .map(|k| {
+                let (a, b, c) = (
+                    patch[k],
+                    patch[(k + 1) % patch.len()],
+                    patch[(k + 2) % patch.len()],
+                );
+                dot(cross(sub(b, a), sub(c, b)), normal)
+            })
+            .collect();
+        assert!(turns.iter().all(|&t| t > 0.0) || turns.iter().all(|&t| t < 0.0));
+        // A plane past the box, or an axis plane through it.
+        assert!(plane_patch([0.0, 0.0, 1.0], 1.0, &bounds).is_empty());
+        assert_eq!(plane_patch([0.0, 0.0, 1.0], 0.1, &bounds).len(), 4);
+    }
+
     #[test]
     fn arc_at_one_is_the_plate_pose_and_at_zero_the_base() {
         let model = paper();
@@ -463,7 +847,11 @@ mod tests {
         // Corner heights are the barriers plus their margins.
         let mut b = vec![0.0; model.nb()];
         model.generated.barriers(&model.params, &q, &mut b);
+        assert_eq!(shape.corners.len(), b.len());
         for (gap, b) in shape.corners.iter().zip(&b) {
+            let gap = gap
+                .as_ref()
+                .expect("the paper robot has corner barriers only");
             assert!((gap.height - gap.margin - b).abs() < 1e-15);
         }
     }

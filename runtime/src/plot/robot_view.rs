@@ -4,12 +4,17 @@
 //! The robot is drawn from the model's generated kinematics (`docs/model.md` §2–3) in a
 //! fixed orthographic projection with equal axis scales: every module's backbone arc, its
 //! tendons (offset curves at the tendon radius, parallel to the backbone), the plates as
-//! polygons through their corners and the base plate. A corner whose barrier is at most
+//! polygons through their corners and the base plate. The robot file's obstacles are
+//! drawn with it: a sphere as a shaded ball with a dashed outline at its radius plus
+//! margin, a half-space as a translucent patch of its plane across the scene with an arrow
+//! to the allowed side; the points they watch are dots (backbone points at their arc
+//! fractions). A corner or watched point whose barrier is at most
 //! [`ViewOptions::active_below`] is ringed in orange (below zero: in red), with a dashed
 //! line down to its foot on the plane of the plate below (the barrier measures that
-//! height). The zoom column looks at the final state edge-on, along the bend axis of the
-//! module with the lowest barrier, and annotates that barrier in millimetres above the
-//! margin band `ε`. Only the snapshot rows of a record are evaluated.
+//! height) or to the nearest point of the obstacle. The zoom column looks at the final
+//! state edge-on, along the bend axis of the module with the lowest corner barrier, and
+//! annotates that barrier in millimetres above the margin band `ε`; its note also names
+//! the lowest barrier of any kind. Only the snapshot rows of a record are evaluated.
 //!
 //! ```no_run
 //! # use softcbf::{model::Model, record::Record};
@@ -36,7 +41,7 @@ use super::{PlotError, register_fonts, write_png};
 use crate::model::Model;
 use crate::record::Record;
 use draw::{
-    AnimationFrame, COLOURS, FRAME_CELL, FRAME_STRIP, Figure, TITLE_HEIGHT, draw_figure,
+    AnimationFrame, FRAME_CELL, FRAME_STRIP, Figure, Scenery, TITLE_HEIGHT, draw_figure,
     draw_frame, extent, fit,
 };
 use shape::{Kinematics, Projection, Rect, Shape};
@@ -59,11 +64,12 @@ pub struct ViewOptions {
     pub times: Vec<f64>,
     /// How many snapshots to choose when `times` is empty (1 to 8).
     pub snapshots: usize,
-    /// A corner is highlighted when its barrier `b ≤ active_below` \[m\] (default 0.5 mm:
-    /// resting on its margin); below zero it is drawn as a violation.
+    /// A corner or watched point is highlighted when its barrier `b ≤ active_below` \[m\]
+    /// (default 0.5 mm: resting on its margin); below zero it is drawn as a violation.
     pub active_below: f64,
     /// The camera; `None` chooses one from the first run's final state: looking across
-    /// the bend of the module with the lowest barrier, 30° around from side-on, 15° above.
+    /// the bend of the module with the lowest corner barrier, 30° around from side-on, 15°
+    /// above.
     pub camera: Option<Camera>,
 }
 
@@ -368,7 +374,7 @@ fn choose_times(runs: &[Run], count: usize) -> Vec<f64> {
 
 /// The snapshots [`draw_robot_views`] draws for each run (outer: runs, inner: times):
 /// the nearest drawable row to each of `times` (non-finite times are left out), its
-/// barrier values and which corners count as active (`b ≤ active_below`) or violated.
+/// barrier values and which barriers count as active (`b ≤ active_below`) or violated.
 pub fn plan_snapshots(
     model: &Model,
     panels: &[(&str, &Record)],
@@ -465,8 +471,21 @@ fn lowest(snapshot: &Snapshot) -> Option<(usize, f64)> {
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
+/// The lowest corner barrier of a scene, `(index, value)`: the gap its zoom shows.
+fn lowest_corner(scene: &Scene) -> Option<(usize, f64)> {
+    let shape = scene.shape.as_ref()?;
+    scene
+        .snapshot
+        .b
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|&(j, b)| b.is_finite() && shape.corner(j).is_some())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
 /// The camera of `options`, or one looking across the bend of the module with the lowest
-/// barrier in `scene`, 30° around from side-on and 15° above.
+/// corner barrier in `scene`, 30° around from side-on and 15° above.
 fn choose_camera(camera: Option<Camera>, scene: Option<&Scene>) -> Projection {
     if let Some(camera) = camera {
         return Projection::from_angles(
@@ -477,8 +496,8 @@ fn choose_camera(camera: Option<Camera>, scene: Option<&Scene>) -> Projection {
     let elevation = 15f64.to_radians();
     let bend = scene.and_then(|scene| {
         let shape = scene.shape.as_ref()?;
-        let (j, _) = lowest(&scene.snapshot)?;
-        let gap = shape.corners.get(j)?;
+        let (j, _) = lowest_corner(scene)?;
+        let gap = shape.corner(j)?;
         // The corner's horizontal direction from its module's base: where the module bends.
         let base = shape.poses.get(gap.module)?;
         let origin = shape::apply(base, [0.0; 3]);
@@ -495,7 +514,7 @@ fn choose_camera(camera: Option<Camera>, scene: Option<&Scene>) -> Projection {
 /// The edge-on camera of a zoom on barrier `j`'s corner: looking along the bend axis of
 /// its module (both plates then show as lines), from the side facing `main`.
 fn zoom_camera(shape: &Shape, j: usize, main: &Projection) -> Option<Projection> {
-    let gap = shape.corners.get(j)?;
+    let gap = shape.corner(j)?;
     let base = shape.poses.get(gap.module)?;
     let tip = shape.poses.get(gap.module + 1)?;
     let normal = shape::rotate(base, [0.0, 0.0, 1.0]);
@@ -555,7 +574,8 @@ fn check_common(active_below: f64, camera: Option<Camera>) -> Result<(), String>
 /// their paths: one row per run of `panels` (title, record with `model`'s coordinates and
 /// barriers), one column per snapshot time, and a zoom on each run's final state. The
 /// figure is `270·snapshots + 400` pixels wide (at least 900) and `40 + 514·runs` high plus
-/// the legend: 76 pixels with 4 or more snapshots, 104 with 3, 132 with fewer.
+/// the legend: 76 pixels with 4 or more snapshots, 104 with 3, 132 with fewer; for a robot
+/// with obstacles (three entries more) 104, 132 and 188.
 pub fn draw_robot_views(
     out_dir: &Path,
     stem: &str,
@@ -604,7 +624,12 @@ pub fn draw_robot_views(
     );
     let finals: Vec<Scene> = scenes_flat(model, &runs, final_plan);
     let projection = choose_camera(options.camera, finals.first());
+    let scenery = Scenery::new(
+        model,
+        scenes.iter().flatten().filter_map(|s| s.shape.as_ref()),
+    );
     let figure = Figure {
+        scenery,
         model,
         titles: runs.iter().map(|r| r.title).collect(),
         scenes,
@@ -648,7 +673,7 @@ fn scenes_flat(model: &Model, runs: &[Run], plan: Vec<Vec<Snapshot>>) -> Vec<Sce
 /// Writes an animated GIF of the runs of `panels` side by side (each a record with
 /// `model`'s coordinates and barriers) to `out_path` (its directory is created if
 /// missing) and returns the path. Each frame shows every run at the same robot time, with
-/// its active corners, the time and a time line; frame times follow
+/// its obstacles, active corners and points, the time and a time line; frame times follow
 /// [`AnimationOptions::uniform`]. The animation loops; it is `440·runs` × 534 pixels.
 pub fn animate_robot(
     out_path: &Path,
@@ -711,9 +736,14 @@ pub fn animate_robot(
         x1: FRAME_CELL.0 as f64 - 4.0,
         y1: FRAME_CELL.1 as f64 - 6.0,
     };
+    let scenery = Scenery::new(
+        model,
+        scenes.iter().flatten().filter_map(|s| s.shape.as_ref()),
+    );
     let bounds = extent(
         scenes.iter().flatten().filter_map(|s| s.shape.as_ref()),
         &projection,
+        &scenery,
     )
     .unwrap_or(((-0.1, 0.1), (0.0, 0.2)));
     let mapping = fit(projection, bounds, rect);
@@ -739,7 +769,7 @@ pub fn animate_robot(
         out_path,
         (size.0 as u16, size.1 as u16),
         delay,
-        &COLOURS.map(|c| [c.0, c.1, c.2]),
+        &scenery.palette(),
     )
     .map_err(failed)?;
     let mut pixels = vec![0u8; 3 * size.0 as usize * size.1 as usize];
@@ -764,6 +794,7 @@ pub fn animate_robot(
                 span,
                 speed,
                 active_below: options.active_below,
+                scenery: &scenery,
             };
             draw_frame(&root, &frame).map_err(failed)?;
             root.present().map_err(|e| failed(e.to_string()))?;
@@ -795,7 +826,7 @@ mod tests {
         let main = Projection::from_angles(-1.0, 0.26);
         for j in [0, 10] {
             let view = zoom_camera(&shape, j, &main).unwrap();
-            let module = shape.corners[j].module;
+            let module = shape.corner(j).unwrap().module;
             for plate in [module, module + 1] {
                 let normal = shape::rotate(&shape.poses[plate], [0.0, 0.0, 1.0]);
                 // Edge-on: the view direction lies in the plate's plane.
