@@ -399,8 +399,14 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
         "| head -c 10",
     );
     assert_eq!(code, 0, "{stderr}");
-    assert!(out.join("figure.png").exists(), "no figure: {stderr}");
-    whole_rows(&out.join("trajectory.csv"), false);
+    // The reader may go away before the run's first tick (a loaded machine: the banner and
+    // the settings line are written before it): then the log has no row and there is no
+    // figure to draw. Either way the log is whole.
+    let rows = whole_rows(&out.join("trajectory.csv"), false);
+    assert!(
+        rows == 0 || out.join("figure.png").exists(),
+        "{rows} rows but no figure: {stderr}"
+    );
     assert_torque_off(&emulator.port, "| head -c 10");
 
     // `> /dev/full`: the run goes on and stops safely; the lost output is an error.
