@@ -306,12 +306,7 @@ pub(super) fn polygon<DB: DrawingBackend>(
     fill: RGBColor,
     edge: Option<(RGBColor, u32)>,
 ) -> DrawResult {
-    let clipped = shape::clip_polygon(points, rect);
-    if clipped.len() >= 3 {
-        let pixels: Vec<(i32, i32)> = clipped.iter().copied().map(pixel).collect();
-        area.draw(&Polygon::new(pixels, fill.filled()))
-            .map_err(|e| e.to_string())?;
-    }
+    fill_clipped(area, points, rect, fill.filled())?;
     if let Some((colour, width)) = edge {
         for k in 0..points.len() {
             let next = points[(k + 1) % points.len()];
@@ -336,10 +331,20 @@ pub(super) fn polygon_alpha<DB: DrawingBackend>(
     fill: RGBColor,
     alpha: f64,
 ) -> DrawResult {
+    fill_clipped(area, points, rect, fill.mix(alpha).filled())
+}
+
+/// Fills the polygon `points` (pixels) with `style`, clipped to `rect`.
+fn fill_clipped<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    points: &[(f64, f64)],
+    rect: &Rect,
+    style: ShapeStyle,
+) -> DrawResult {
     let clipped = shape::clip_polygon(points, rect);
     if clipped.len() >= 3 {
         let pixels: Vec<(i32, i32)> = clipped.iter().copied().map(pixel).collect();
-        area.draw(&Polygon::new(pixels, fill.mix(alpha).filled()))
+        area.draw(&Polygon::new(pixels, style))
             .map_err(|e| e.to_string())?;
     }
     Ok(())

@@ -7,10 +7,10 @@
 //! segment's rest length and coordinates scaled by the arc fraction `s` (docs/model.md §2:
 //! the arc of bend `sθ` and length `sL`), so nothing here divides by `θ`.
 
-use softcbf_description::barriers::{Shape as Region, WatchedPoint};
+use softcbf_description::barriers::Shape as Region;
 use softcbf_description::layout::{Param, param_layout};
-use softcbf_generated::{BarrierKind, Point as Watch};
 
+use crate::barrier_info;
 use crate::model::Model;
 
 /// A homogeneous transform, row-major (`[row][column]`), as the generated functions use.
@@ -67,8 +67,6 @@ pub(super) struct Kinematics<'m> {
     model: &'m Model,
     /// Index of `L0_i` in the parameter vector, per module.
     rest_length: Vec<usize>,
-    /// Index of `ε` of each corner barrier's corner in the parameter vector (table order).
-    margin: Vec<Option<usize>>,
     /// Each environment barrier's watched point (table order).
     watched: Vec<Option<WatchedAt>>,
     params: Vec<f64>,
@@ -83,27 +81,10 @@ impl<'m> Kinematics<'m> {
         let rest_length = (0..model.n_modules())
             .map(|i| index(Param::RestLength(i)).unwrap_or(usize::MAX))
             .collect();
-        let margin = model
-            .generated
-            .barrier_table()
-            .iter()
-            .map(|info| match info.kind {
-                BarrierKind::PlateCorner => info
-                    .corner()
-                    .and_then(|j| index(Param::Margin(info.module, j))),
-                _ => None,
-            })
-            .collect();
-        let watched = model
-            .generated
-            .barrier_table()
-            .iter()
-            .map(|info| watched_at(model, info))
-            .collect();
+        let watched = (0..model.nb()).map(|k| watched_at(model, k)).collect();
         Kinematics {
             model,
             rest_length,
-            margin,
             watched,
             params: model.params.clone(),
             q: vec![0.0; model.nq()],
@@ -196,8 +177,8 @@ impl<'m> Kinematics<'m> {
             .generated
             .barrier_table()
             .iter()
-            .zip(&self.margin)
-            .map(|(info, margin)| {
+            .enumerate()
+            .map(|(k, info)| {
                 let corner = info.corner()?;
                 let module = modules.get(info.module)?;
                 let phi = *module.corner_angles.get(corner)?;
@@ -212,9 +193,7 @@ impl<'m> Kinematics<'m> {
                     corner: apply(base, local),
                     foot: apply(base, [local[0], local[1], 0.0]),
                     height: local[2],
-                    margin: margin
-                        .and_then(|k| model.params.get(k).copied())
-                        .unwrap_or(0.0),
+                    margin: barrier_info::margin(model, k).unwrap_or(0.0),
                 })
             })
             .collect();
@@ -276,32 +255,17 @@ struct WatchedAt {
     arc: Option<f64>,
 }
 
-/// The watched point of barrier `info`, if it is an environment barrier of a point the
-/// robot's obstacles describe.
-fn watched_at(model: &Model, info: &softcbf_generated::BarrierInfo) -> Option<WatchedAt> {
-    let obstacle = info.obstacle?;
-    let at = |plate, arc| WatchedAt {
+/// The watched point of barrier `k`, if it is an environment barrier of a point the
+/// robot's obstacles describe (its numbers from [`barrier_info`]).
+fn watched_at(model: &Model, k: usize) -> Option<WatchedAt> {
+    let info = barrier_info::info(model, k)?;
+    let at = WatchedAt {
         module: info.module,
-        obstacle,
-        plate,
-        arc,
+        obstacle: info.obstacle?,
+        plate: barrier_info::plate_point(model, k),
+        arc: barrier_info::arc_fraction(model, k),
     };
-    match info.point? {
-        Watch::Corner(j) => {
-            let module = model.robot.modules.get(info.module)?;
-            let phi = *module.corner_angles.get(j)?;
-            let r = module.corner_radius;
-            Some(at(Some([r * phi.cos(), r * phi.sin(), 0.0]), None))
-        }
-        Watch::Centre => Some(at(Some([0.0; 3]), None)),
-        Watch::Listed(k) | Watch::Arc(k) => {
-            match model.robot.obstacles.get(obstacle)?.watch.get(k)?.point {
-                WatchedPoint::Listed(p) => Some(at(Some(p), None)),
-                WatchedPoint::Arc(s) => Some(at(None, Some(s))),
-                _ => None,
-            }
-        }
-    }
+    (at.plate.is_some() || at.arc.is_some()).then_some(at)
 }
 
 /// Where an environment barrier's watched point is.
@@ -654,7 +618,9 @@ fn at_y(a: (f64, f64), b: (f64, f64), y: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use softcbf_description::barriers::WatchedPoint;
     use softcbf_description::robot::Robot;
+    use softcbf_generated::{BarrierKind, Point as Watch};
 
     fn paper() -> Model {
         Model::new(Robot::paper_sim()).expect("the paper robot has a model")
