@@ -31,9 +31,13 @@ pub struct ControllerSettings {
     pub barrier_gains: [f64; 2],
     /// Run the safety filter (`false`: plain PD+, `τ = τ_nom`). Default `true`.
     pub filter: bool,
-    /// Hold period `Δ` \[s\] of the hold correction (module docs); `0` (the default) gives the
-    /// paper's rows `A = J M⁻¹`.
-    pub hold_correction: f64,
+    /// Which rows keep the barriers (docs/model.md §5): the paper's continuous-time rows,
+    /// the hold correction, or the sampled-data guarantee over the hold `hold`.
+    pub safety: SafetyMode,
+    /// Hold period `Δ` \[s\]: how long each command is held. The hold correction and the
+    /// sampled-data guarantee use it; the paper's rows do not. `0` only with
+    /// [`SafetyMode::Paper`].
+    pub hold: f64,
     /// Constant limits on the command, `A_u τ ≥ b_u`: rows (row-major, `nq` columns) and
     /// right-hand sides, solved together with the barrier rows (e.g. cable tensions kept in
     /// `[f_min, f_max]`). Default: none.
@@ -51,7 +55,8 @@ impl ControllerSettings {
             kd: scaled_identity(model.nq(), 1.0),
             barrier_gains: model.robot.barrier_gains(),
             filter: true,
-            hold_correction: 0.0,
+            safety: SafetyMode::Paper,
+            hold: 0.0,
             input_limits: (Vec::new(), Vec::new()),
             qp: QpSettings::default(),
         }
@@ -90,10 +95,19 @@ impl ControllerSettings {
                 reason: "must be finite".to_string(),
             });
         }
-        if !(self.hold_correction.is_finite() && self.hold_correction >= 0.0) {
+        if !(self.hold.is_finite() && self.hold >= 0.0) {
             return Err(ControllerError::Setting {
-                field: "hold_correction",
-                reason: format!("must be finite and ≥ 0 s, got {}", self.hold_correction),
+                field: "hold",
+                reason: format!("must be finite and ≥ 0 s, got {}", self.hold),
+            });
+        }
+        if self.safety != SafetyMode::Paper && self.hold <= 0.0 {
+            return Err(ControllerError::Setting {
+                field: "hold",
+                reason: format!(
+                    "must be > 0 s for the {} safety mode, got {}",
+                    self.safety, self.hold
+                ),
             });
         }
         for (field, gain) in [("p1", self.barrier_gains[0]), ("p2", self.barrier_gains[1])] {
@@ -105,6 +119,64 @@ impl ControllerSettings {
             }
         }
         Ok(())
+    }
+}
+
+/// How the safety filter keeps the barriers between the samples of the state
+/// (docs/model.md §5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SafetyMode {
+    /// The paper's continuous-time HOCBF rows `A = J M⁻¹` at the sample.
+    Paper,
+    /// The paper's rows with the acceleration of one implicit Euler step over the hold.
+    HoldCorrection,
+    /// The sampled-data guarantee: the barriers predicted over the whole hold.
+    #[default]
+    Sampled,
+}
+
+impl SafetyMode {
+    /// Every mode, in the order the help lists them.
+    pub const ALL: [SafetyMode; 3] = [
+        SafetyMode::Sampled,
+        SafetyMode::Paper,
+        SafetyMode::HoldCorrection,
+    ];
+
+    /// The name used in files, on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            SafetyMode::Paper => "paper",
+            SafetyMode::HoldCorrection => "hold-correction",
+            SafetyMode::Sampled => "sampled",
+        }
+    }
+
+    /// The mode named `name`, or an error listing the names.
+    pub fn parse(name: &str) -> Result<SafetyMode, String> {
+        SafetyMode::ALL
+            .into_iter()
+            .find(|mode| mode.name() == name)
+            .ok_or_else(|| {
+                format!(
+                    "`{name}` is not a safety mode; give one of {}",
+                    SafetyMode::ALL
+                        .map(|m| format!("\"{}\"", m.name()))
+                        .join(", ")
+                )
+            })
+    }
+}
+
+impl std::fmt::Display for SafetyMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl serde::Serialize for SafetyMode {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
     }
 }
 
@@ -278,13 +350,13 @@ impl Controller {
         Some([p1 * self.gain_scale, p2 * self.gain_scale])
     }
 
-    /// Changes the hold period `Δ` \[s\] of the hold correction (`0`: the paper's rows), for
-    /// a loop whose real period differs from its nominal one. A value that is not finite
-    /// and ≥ 0 is refused (`false`) and the previous one kept.
-    pub fn set_hold_correction(&mut self, hold: f64) -> bool {
-        let valid = hold.is_finite() && hold >= 0.0;
+    /// Changes the hold period `Δ` \[s\] (for a loop whose real period differs from its
+    /// nominal one). A value that is not finite and > 0 is refused (`false`) and the
+    /// previous one kept.
+    pub fn set_hold(&mut self, hold: f64) -> bool {
+        let valid = hold.is_finite() && hold > 0.0;
         if valid {
-            self.settings.hold_correction = hold;
+            self.settings.hold = hold;
         }
         valid
     }
@@ -463,7 +535,10 @@ pub fn tick(
     // Rows A_k = J_k M⁻¹ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k
     // (with the hold correction: S⁻¹ for M⁻¹ and n + Δ K q̇ for n).
     // A barrier depends on few coordinates (its module's), so zero entries of J are skipped.
-    let hold = settings.hold_correction;
+    let hold = match settings.safety {
+        SafetyMode::Paper => 0.0,
+        SafetyMode::HoldCorrection | SafetyMode::Sampled => settings.hold,
+    };
     let scale = controller.gain_scale;
     let factor = if hold > 0.0 {
         // S = M + Δ D + Δ² K, and n + Δ K q̇ (K, D diagonal).

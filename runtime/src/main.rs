@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 
 use softcbf::cli::{check_number, load_robot, parse_coordinates, parse_velocities};
+use softcbf::control::SafetyMode;
 use softcbf::exit;
 use softcbf::hardware::cli::output_directory;
 use softcbf::inspect::model_report;
@@ -62,9 +63,10 @@ struct SimulateArgs {
     /// Derivative gain K_D = kd·I (N·s/m).
     #[arg(long, allow_negative_numbers = true)]
     kd: Option<f64>,
-    /// Correct the HOCBF rows for the zero-order hold (scenarios/README.md).
-    #[arg(long, value_name = "on|off", value_parser = on_off)]
-    hold_correction: Option<bool>,
+    /// How the filter keeps the barriers between samples: `sampled` (the guarantee over the
+    /// whole hold), `paper` (the paper's rows) or `hold-correction` (docs/model.md §5).
+    #[arg(long, value_name = "MODE", value_parser = SafetyMode::parse)]
+    safety: Option<SafetyMode>,
     /// Run plain PD+ without the safety filter.
     #[arg(long, conflicts_with = "compare")]
     no_filter: bool,
@@ -80,15 +82,6 @@ struct SimulateArgs {
     /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
     #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
     barrier_threshold: f64,
-}
-
-/// `on` or `off`.
-fn on_off(text: &str) -> Result<bool, String> {
-    match text {
-        "on" => Ok(true),
-        "off" => Ok(false),
-        _ => Err(format!("`{text}`: give `on` or `off`")),
-    }
 }
 
 #[derive(Subcommand)]
@@ -202,7 +195,7 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         duration,
         control_period,
         filter: args.no_filter.then_some(false),
-        hold_correction: args.hold_correction,
+        safety: args.safety,
         compare: args.compare.then_some(true),
     };
     let scenario = file

@@ -16,7 +16,7 @@ use softcbf_description::robot::Robot;
 use softcbf_description::toml_file::{Checker, FileError};
 use toml::Spanned;
 
-use crate::control::ControllerSettings;
+use crate::control::{ControllerSettings, SafetyMode};
 use crate::integrator::Tolerances;
 use crate::model::Model;
 use crate::qp::QpSettings;
@@ -67,8 +67,8 @@ pub struct Sources {
     pub reference: Source,
     /// Of the filter switch.
     pub filter: Source,
-    /// Of the hold correction switch.
-    pub hold_correction: Source,
+    /// Of the safety mode.
+    pub safety: Source,
     /// Of the comparison switch.
     pub compare: Source,
 }
@@ -87,8 +87,8 @@ pub struct Overrides {
     pub control_period: Option<f64>,
     /// `Some(false)` for `--no-filter`.
     pub filter: Option<bool>,
-    /// `--hold-correction` / `--no-hold-correction`.
-    pub hold_correction: Option<bool>,
+    /// `--safety`.
+    pub safety: Option<SafetyMode>,
     /// `Some(true)` for `--compare`.
     pub compare: Option<bool>,
 }
@@ -123,7 +123,9 @@ struct RawScenario {
     duration: Option<Spanned<f64>>,
     control_period: Option<Spanned<f64>>,
     filter: Option<bool>,
-    hold_correction: Option<bool>,
+    safety: Option<Spanned<String>>,
+    /// The old switch: `true` is `safety = "hold-correction"`, `false` the paper's rows.
+    hold_correction: Option<Spanned<bool>>,
     compare: Option<bool>,
     #[serde(default)]
     initial: RawInitial,
@@ -382,12 +384,12 @@ impl ScenarioFile {
             ],
             true,
         );
-        let hold_correction = first(
+        let safety = first(
             [
-                (overrides.hold_correction, Source::CommandLine),
-                (raw.hold_correction, Source::Scenario),
+                (overrides.safety, Source::CommandLine),
+                (self.safety_mode(&c)?, Source::Scenario),
             ],
-            false,
+            SafetyMode::default(),
         );
         let compare = first(
             [
@@ -401,7 +403,8 @@ impl ScenarioFile {
             kd: Vec::new(),
             barrier_gains: [0.0; 2],
             filter: filter.value,
-            hold_correction: if hold_correction.value { period } else { 0.0 },
+            safety: safety.value,
+            hold: period,
             input_limits: (Vec::new(), Vec::new()),
             qp: QpSettings::default(),
         };
@@ -423,10 +426,30 @@ impl ScenarioFile {
                 duration: duration.source,
                 reference: reference.source,
                 filter: filter.source,
-                hold_correction: hold_correction.source,
+                safety: safety.source,
                 compare: compare.source,
             },
         })
+    }
+
+    /// The file's `safety` (or its old spelling `hold_correction = true | false`), if given.
+    fn safety_mode(&self, c: &Checker<'_>) -> Result<Option<SafetyMode>, FileError> {
+        match (&self.raw.safety, &self.raw.hold_correction) {
+            (Some(_), Some(old)) => Err(c.invalid(
+                &old.span(),
+                "hold_correction",
+                "give either `safety` or the older `hold_correction`, not both".to_string(),
+            )),
+            (Some(name), None) => SafetyMode::parse(name.get_ref())
+                .map(Some)
+                .map_err(|message| c.invalid(&name.span(), "safety", message)),
+            (None, Some(old)) => Ok(Some(if *old.get_ref() {
+                SafetyMode::HoldCorrection
+            } else {
+                SafetyMode::Paper
+            })),
+            (None, None) => Ok(None),
+        }
     }
 
     /// Checks that `duration` holds at least one tick of `period` and at most

@@ -23,7 +23,7 @@ use softcbf_description::limits;
 use softcbf_description::robot::{DEFAULT_BARRIER_GAINS, Robot};
 
 use crate::cli::check_number;
-use crate::control::ControllerSettings;
+use crate::control::{ControllerSettings, SafetyMode};
 use crate::scenario::PAPER_GAINS;
 
 /// Where a setting's value came from.
@@ -258,8 +258,9 @@ pub struct SettingsReport {
     /// `K_P`, `K_D`, `p1`, `p2`.
     #[serde(flatten)]
     pub gains: GainsReport,
-    /// Whether the HOCBF rows were corrected for the zero-order hold.
-    pub hold_correction: Sourced<bool>,
+    /// Which rows kept the barriers: the paper's, the hold correction or the sampled-data
+    /// guarantee (docs/model.md §5).
+    pub safety: Sourced<SafetyMode>,
     /// Control period \[s\] (for a hardware run: one over the loop rate asked for).
     pub control_period: Sourced<f64>,
     /// Duration asked for \[s\] (`None`: until stopped).
@@ -315,9 +316,8 @@ impl SettingsReport {
             g.p2.source
         ));
         parts.push(format!(
-            "hold correction {} ({})",
-            on(self.hold_correction.value),
-            self.hold_correction.source
+            "safety {} ({})",
+            self.safety.value, self.safety.source
         ));
         parts.push(format!(
             "control period {} s ({})",

@@ -341,10 +341,7 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
         }),
         filter: Sourced::new(filter, filter_source),
         gains: sources.gains.report(model.nq()),
-        hold_correction: Sourced::new(
-            scenario.controller.hold_correction > 0.0,
-            sources.hold_correction,
-        ),
+        safety: Sourced::new(scenario.controller.safety, sources.safety),
         control_period: Sourced::new(scenario.control_period, sources.control_period),
         duration: Some(Sourced::new(scenario.duration, sources.duration)),
         reference: Sourced::new(reference, sources.reference),

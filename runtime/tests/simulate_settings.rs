@@ -163,8 +163,8 @@ fn the_summary_records_every_setting_and_the_flags_change_them() {
         "0.002",
         "--set-point",
         "0.01,0,0,0,0.01,-0.01",
-        "--hold-correction",
-        "on",
+        "--safety",
+        "hold-correction",
     ]);
     assert!(output.status.success(), "{output:?}");
     let stdout = String::from_utf8_lossy(&output.stdout);
@@ -180,7 +180,7 @@ fn the_summary_records_every_setting_and_the_flags_change_them() {
         "kd",
         "p1",
         "p2",
-        "hold_correction",
+        "safety",
         "control_period",
         "duration",
         "reference",
@@ -204,8 +204,8 @@ fn the_summary_records_every_setting_and_the_flags_change_them() {
         (&Value::from(0.06), "command_line")
     );
     assert_eq!(
-        setting(&summary, "hold_correction"),
-        (&Value::from(true), "command_line")
+        setting(&summary, "safety"),
+        (&Value::from("hold-correction"), "command_line")
     );
     assert_eq!(
         setting(&summary, "filter"),
@@ -290,8 +290,11 @@ fn settings_that_cannot_work_are_refused_with_the_option_or_field_named() {
     assert!(stderr.contains("--control-period: must be"), "{stderr}");
     let stderr = refused(&["--set-point", "0,0,0", "--out", out], 1);
     assert!(stderr.contains("--set-point: 3 values given"), "{stderr}");
-    let stderr = refused(&["--hold-correction", "yes", "--out", out], 2);
-    assert!(stderr.contains("give `on` or `off`"), "{stderr}");
+    let stderr = refused(&["--safety", "yes", "--out", out], 2);
+    assert!(
+        stderr.contains("`yes` is not a safety mode; give one of \"sampled\""),
+        "{stderr}"
+    );
 
     // A scenario without the filter cannot be compared with plain PD+.
     let plain = dir.join("plain.toml");

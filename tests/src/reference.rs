@@ -569,6 +569,7 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
         routing: Routing::Local,
         limits: vec![Default::default(); modules.len()],
         obstacles: Vec::new(),
+        uncertainty: Default::default(),
         modules,
         hardware: None,
     }

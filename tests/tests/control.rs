@@ -4,7 +4,9 @@
 
 use rand::RngExt;
 use softcbf::cli::load_robot;
-use softcbf::control::{Controller, ControllerSettings, InvalidState, Reference, TickStatus, tick};
+use softcbf::control::{
+    Controller, ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus, tick,
+};
 use softcbf::dynamics::{DynamicsWorkspace, forward_dynamics};
 use softcbf::model::Model;
 use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
@@ -118,7 +120,8 @@ fn hold_corrected_rows_predict_the_implicit_euler_step() {
     let (nq, nb) = (model.nq(), model.nb());
     let mut settings = ControllerSettings::paper(&model);
     let hold = 1e-3;
-    settings.hold_correction = hold;
+    settings.safety = SafetyMode::HoldCorrection;
+    settings.hold = hold;
     let mut controller = Controller::new(&model, settings).unwrap();
     let [p1, p2] = controller.settings().barrier_gains;
     let (stiffness, damping) = stiffness_and_damping(&model.robot);
@@ -462,7 +465,8 @@ fn control_tick_and_plant_step_allocate_nothing() {
     let model = paper_model();
     let nq = model.nq();
     let mut settings = ControllerSettings::paper(&model);
-    settings.hold_correction = 1e-3;
+    settings.safety = SafetyMode::Sampled;
+    settings.hold = 1e-3;
     let mut controller = Controller::new(&model, settings).unwrap();
     let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
     let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];

@@ -9,7 +9,8 @@ use proptest::prelude::*;
 use rand::RngExt;
 use serde_json::Value;
 use softcbf::control::{
-    Controller, ControllerSettings, InvalidState, Reference, TickStatus, scaled_identity, tick,
+    Controller, ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus,
+    scaled_identity, tick,
 };
 use softcbf::hardware::description::{self, Hardware};
 use softcbf::inspect::model_report;
@@ -202,10 +203,11 @@ fn extreme_settings(model: &Model, rng: &mut TestRng) -> ControllerSettings {
     let mut settings = ControllerSettings::paper(model);
     settings.kp = scaled_identity(nq, end(&limits::KP_N_PER_M, rng.random::<bool>()));
     settings.kd = scaled_identity(nq, end(&limits::KD_N_S_PER_M, rng.random::<bool>()));
-    settings.hold_correction = if rng.random::<bool>() {
-        limits::CONTROL_PERIOD_S.max
+    settings.hold = limits::CONTROL_PERIOD_S.max;
+    settings.safety = if rng.random::<bool>() {
+        SafetyMode::HoldCorrection
     } else {
-        0.0
+        SafetyMode::Paper
     };
     settings
 }

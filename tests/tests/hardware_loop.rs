@@ -12,6 +12,7 @@ use std::thread;
 use std::time::Duration;
 
 use serialport::{SerialPort, TTYPort};
+use softcbf::control::SafetyMode;
 use softcbf::hardware::description::{self, Hardware, VelocitySource};
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, Faults};
 use softcbf::hardware::log::{CsvLog, FIXED_EXTRA};
@@ -346,7 +347,7 @@ fn velocity_from_filtered_differences_also_holds_the_barriers() {
     // The hold correction leans on q̇ over the whole tick; the filtered difference lags
     // by about a tick, and with it the corrected rows did worse (−9.6 mm) than the paper's
     // (−0.4 mm) here, as robots/README.md says.
-    hardware.hold_correction = false;
+    hardware.safety = Some(SafetyMode::Paper);
     let out = run_with_hardware(robot, hardware, Faults::default(), 3.0, None);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);

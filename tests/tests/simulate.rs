@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use softcbf::cli::load_robot;
+use softcbf::control::SafetyMode;
 use softcbf::model::Model;
 use softcbf::reference::ReferenceSpec;
 use softcbf::scenario::{Scenario, ScenarioFile};
@@ -127,7 +128,8 @@ fn hold_correction_keeps_three_square_barriers() {
     let model = Model::new(robot).unwrap();
     assert_eq!(model.nq(), 9);
     let mut scenario = file.resolve(&model).unwrap();
-    assert_eq!(scenario.controller.hold_correction, scenario.control_period);
+    assert_eq!(scenario.controller.safety, SafetyMode::HoldCorrection);
+    assert_eq!(scenario.controller.hold, scenario.control_period);
     scenario.duration = 3.0;
     let corrected = run(&model, &scenario, true);
     let lowest = min_barrier(&corrected);
@@ -135,7 +137,7 @@ fn hold_correction_keeps_three_square_barriers() {
         lowest >= -1e-6,
         "with the hold correction: lowest barrier {lowest}"
     );
-    scenario.controller.hold_correction = 0.0;
+    scenario.controller.safety = SafetyMode::Paper;
     let paper_rows = run(&model, &scenario, true);
     let lowest = min_barrier(&paper_rows);
     eprintln!("three-square at 1 kHz, paper's rows: lowest barrier {lowest:.3e} m");

@@ -24,5 +24,6 @@ pub mod limits;
 pub mod module;
 pub mod robot;
 pub mod toml_file;
+pub mod uncertainty;
 
 pub use robot::{Robot, RobotError, Structure};

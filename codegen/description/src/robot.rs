@@ -25,6 +25,7 @@ pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
 use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
+use crate::uncertainty::Uncertainty;
 
 /// How tendons are routed (§6 of the model notes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
@@ -59,6 +60,8 @@ pub struct Robot {
     pub limits: Vec<Limits>,
     /// The obstacles (`[[obstacle]]`), in file order.
     pub obstacles: Vec<Obstacle>,
+    /// How far the numbers may be off (`[uncertainty]`; none declared by default).
+    pub uncertainty: Uncertainty,
     /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
     /// reads and checks it (`softcbf::hardware::description`).
     pub hardware: Option<HardwareTable>,
@@ -360,6 +363,7 @@ impl Checker<'_> {
             routing: file.routing.unwrap_or(Routing::Local),
             limits,
             obstacles,
+            uncertainty: Uncertainty::default(),
             modules,
             hardware: file.hardware.map(|table| HardwareTable {
                 text: Arc::from(self.text),

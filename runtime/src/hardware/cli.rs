@@ -400,7 +400,7 @@ pub fn run_settings_report(
     };
     let (reference_source, hold_source) = (
         given(args.set_point.is_some()),
-        if hardware.hold_correction {
+        if hardware.safety.is_some() {
             Source::RobotFile
         } else {
             Source::BuiltIn
@@ -415,7 +415,7 @@ pub fn run_settings_report(
         scenario: None,
         filter: Sourced::new(settings.filter, given(args.no_filter)),
         gains: gains.report(nq),
-        hold_correction: Sourced::new(hardware.hold_correction, hold_source),
+        safety: Sourced::new(hardware.safety.unwrap_or_default(), hold_source),
         control_period: Sourced::new(1.0 / settings.rate, given(args.rate.is_some())),
         duration: settings
             .duration
@@ -571,6 +571,7 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::SafetyMode;
     use clap::Parser;
 
     #[derive(Parser)]
@@ -607,8 +608,8 @@ mod tests {
         );
         assert_eq!(report.reference.source, Source::RobotFile);
         assert_eq!(
-            report.hold_correction,
-            Sourced::new(true, Source::RobotFile)
+            report.safety,
+            Sourced::new(SafetyMode::Sampled, Source::RobotFile)
         );
 
         let (settings, report) =

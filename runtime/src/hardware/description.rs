@@ -15,6 +15,7 @@ use softcbf_description::toml_file::{Checker, FileError};
 use toml::Spanned;
 
 use super::limits;
+use crate::control::SafetyMode;
 
 /// Where the controller takes `q̇` from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,9 +73,11 @@ pub struct Hardware {
     pub velocity_unit: f64,
     /// Default set point `q̄` (length `3·modules`); zeros when not given.
     pub set_point: Vec<f64>,
-    /// Correct the HOCBF rows for the loop's zero-order hold (`softcbf::control`); default
-    /// `false` (the paper's rows).
-    pub hold_correction: bool,
+    /// How the filter keeps the barriers between ticks (`safety = "sampled" | "paper" |
+    /// "hold-correction"`, or the older `hold_correction = true | false`); `None` when the
+    /// file does not say (the run then uses [`SafetyMode::default`], the sampled-data
+    /// guarantee).
+    pub safety: Option<SafetyMode>,
     /// One entry per module, base first.
     pub modules: Vec<ModuleHardware>,
 }
@@ -129,7 +132,8 @@ struct RawHardware {
     position_unit_deg: Num,
     velocity_unit_rpm: Num,
     set_point: List,
-    hold_correction: Option<bool>,
+    safety: Option<Spanned<String>>,
+    hold_correction: Option<Spanned<bool>>,
     module: Option<Spanned<Vec<RawModuleHardware>>>,
 }
 
@@ -349,7 +353,25 @@ impl TableChecker<'_> {
             position_unit,
             velocity_unit,
             set_point,
-            hold_correction: raw.hold_correction.unwrap_or(false),
+            safety: match (&raw.safety, &raw.hold_correction) {
+                (Some(_), Some(old)) => {
+                    return Err(self.invalid(
+                        &old.span(),
+                        "hardware.hold_correction",
+                        "give either `safety` or the older `hold_correction`, not both".to_string(),
+                    ));
+                }
+                (Some(name), None) => Some(
+                    SafetyMode::parse(name.get_ref())
+                        .map_err(|m| self.invalid(&name.span(), "hardware.safety", m))?,
+                ),
+                (None, Some(old)) => Some(if *old.get_ref() {
+                    SafetyMode::HoldCorrection
+                } else {
+                    SafetyMode::Paper
+                }),
+                (None, None) => None,
+            },
             modules: out,
         })
     }

@@ -163,9 +163,8 @@ pub fn run<P: ServoPort>(
     // The filter chooses among the commands the cables can realize.
     controller_settings.input_limits = map.tension_limit_rows();
     let period = 1.0 / settings.rate;
-    if hardware.hold_correction {
-        controller_settings.hold_correction = period;
-    }
+    controller_settings.safety = hardware.safety.unwrap_or_default();
+    controller_settings.hold = period;
     let mut controller = Controller::new(model, controller_settings)?;
     let n = map.n_servos();
     let mut io = ServoIo::new(hardware.servo_ids());
@@ -405,9 +404,7 @@ fn control_loop<P: ServoPort>(
                 timing.hold = hold;
                 timing.gain_scale = nominal / hold;
                 controller.set_barrier_gain_scale(timing.gain_scale);
-                if map.hardware().hold_correction {
-                    controller.set_hold_correction(hold);
-                }
+                controller.set_hold(hold);
                 ws.q_used.copy_from_slice(&ws.q);
                 ws.qd_used.copy_from_slice(&ws.qd);
                 if settings.predict && !predict(model, ws, age) {
