@@ -13,10 +13,14 @@
 //! no clock, touches no port and prints nothing, so simulation and hardware share it.
 
 use crate::dynamics::{
-    BarrierTerms, DynamicsError, DynamicsWorkspace, factor_mass_matrix, model_terms,
+    BarrierTerms, DynamicsError, DynamicsWorkspace, bias_and_gravity, factor_mass_matrix,
+    model_terms, update_joints,
 };
+use crate::hold::{HoldPrediction, comparison};
+use crate::integrator::{Rosenbrock, Tolerances};
 use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve, dot};
 use crate::model::Model;
+use crate::plant::{PlantSystem, PlantWorkspace};
 use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
 
 /// What the controller is asked to do: gains and whether the safety filter runs.
@@ -38,6 +42,8 @@ pub struct ControllerSettings {
     /// sampled-data guarantee use it; the paper's rows do not. `0` only with
     /// [`SafetyMode::Paper`].
     pub hold: f64,
+    /// How the sampled-data rows sample the hold (used by [`SafetyMode::Sampled`]).
+    pub sampled: SampledSettings,
     /// Constant limits on the command, `A_u τ ≥ b_u`: rows (row-major, `nq` columns) and
     /// right-hand sides, solved together with the barrier rows (e.g. cable tensions kept in
     /// `[f_min, f_max]`). Default: none.
@@ -57,6 +63,7 @@ impl ControllerSettings {
             filter: true,
             safety: SafetyMode::Paper,
             hold: 0.0,
+            sampled: SampledSettings::default(),
             input_limits: (Vec::new(), Vec::new()),
             qp: QpSettings::default(),
         }
@@ -108,6 +115,30 @@ impl ControllerSettings {
                     "must be > 0 s for the {} safety mode, got {}",
                     self.safety, self.hold
                 ),
+            });
+        }
+        if !(1..=MAX_HOLD_SAMPLES).contains(&self.sampled.samples) {
+            return Err(ControllerError::Setting {
+                field: "sampled.samples",
+                reason: format!(
+                    "must be 1 to {MAX_HOLD_SAMPLES}, got {}",
+                    self.sampled.samples
+                ),
+            });
+        }
+        if self.sampled.early > MAX_EARLY_SAMPLES {
+            return Err(ControllerError::Setting {
+                field: "sampled.early",
+                reason: format!(
+                    "must be 0 to {MAX_EARLY_SAMPLES}, got {}",
+                    self.sampled.early
+                ),
+            });
+        }
+        if !(1..=MAX_PASSES).contains(&self.sampled.passes) {
+            return Err(ControllerError::Setting {
+                field: "sampled.passes",
+                reason: format!("must be 1 to {MAX_PASSES}, got {}", self.sampled.passes),
             });
         }
         for (field, gain) in [("p1", self.barrier_gains[0]), ("p2", self.barrier_gains[1])] {
@@ -177,6 +208,36 @@ impl std::fmt::Display for SafetyMode {
 impl serde::Serialize for SafetyMode {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         serializer.serialize_str(self.name())
+    }
+}
+
+/// How the sampled-data rows sample a hold (docs/model.md §5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampledSettings {
+    /// Even samples `m` per hold: the barriers are kept at `t = k Δ / m`, `k = 1 … m`.
+    pub samples: usize,
+    /// Early samples `L` before the first even one, at `t = 2^{−i} Δ / m`, `i = 1 … L`,
+    /// where the velocity settles after a new command.
+    pub early: usize,
+    /// QP solves per tick: the first linearizes the barriers at the tick's state, each
+    /// further one at the motion the previous one's command predicts.
+    pub passes: usize,
+}
+
+/// Most samples per hold.
+pub const MAX_HOLD_SAMPLES: usize = 64;
+/// Most early samples per hold.
+pub const MAX_EARLY_SAMPLES: usize = 20;
+/// Most QP passes per tick.
+pub const MAX_PASSES: usize = 4;
+
+impl Default for SampledSettings {
+    fn default() -> SampledSettings {
+        SampledSettings {
+            samples: 8,
+            early: 6,
+            passes: 2,
+        }
     }
 }
 
@@ -281,6 +342,80 @@ pub struct Controller {
     /// The factor every barrier's gains are used with (1 but for a loop slower than its
     /// nominal rate).
     gain_scale: f64,
+    /// Rows that belong to barriers (the input limits follow): `nb`, or `nb (m + 1)` with
+    /// the sampled-data rows (sample-major: row `j nb + k` is barrier `k` at sample `j`,
+    /// row `m nb + k` its condition at the end of the hold).
+    barrier_rows: usize,
+    /// Workspace of the sampled-data rows ([`SafetyMode::Sampled`] only).
+    sampled: Option<SampledWorkspace>,
+}
+
+/// What the sampled-data rows need besides the controller's own buffers.
+struct SampledWorkspace {
+    prediction: HoldPrediction,
+    /// `K̃ = K + ∂G/∂q` (row-major `nq × nq`), by central differences of `G` evaluated in
+    /// `gravity`.
+    stiffness: Vec<f64>,
+    gravity: DynamicsWorkspace,
+    perturbed: Vec<f64>,
+    /// `g₀ = h + G + K q₀`, and `τ − g₀` for the command of the previous pass.
+    offset: Vec<f64>,
+    forcing: Vec<f64>,
+    /// The predicted state `q̂ = q₀ + e(t_j)` and the barrier terms there.
+    point: Vec<f64>,
+    excursion: Vec<f64>,
+    values: Vec<f64>,
+    jacobian: Vec<f64>,
+    jdot_qd: Vec<f64>,
+    zero: Vec<f64>,
+    /// `max(ψ_k(t_j), 0)`, sample-major.
+    floor: Vec<f64>,
+    /// The command of the previous pass.
+    guess: Vec<f64>,
+    /// The nonlinear plant that predicts the motion under that command: its equations'
+    /// workspace, integrator and state `(q, q̇)`.
+    plant: PlantWorkspace,
+    integrator: Rosenbrock,
+    state: Vec<f64>,
+}
+
+/// Error control of the prediction between samples: far tighter than the barriers'
+/// tolerance of 1e-6 m, and the first step short enough for the velocity transient.
+fn prediction_tolerances() -> Tolerances {
+    Tolerances {
+        rtol: 1e-7,
+        atol: 1e-10,
+        h_initial: 1e-6,
+        max_steps: 10_000,
+        ..Tolerances::default()
+    }
+}
+
+impl SampledWorkspace {
+    fn new(model: &Model, settings: &SampledSettings) -> SampledWorkspace {
+        let (nq, nb) = (model.nq(), model.nb());
+        let samples = settings.samples + settings.early;
+        SampledWorkspace {
+            prediction: HoldPrediction::new(nq, settings.samples, settings.early),
+            stiffness: vec![0.0; nq * nq],
+            gravity: DynamicsWorkspace::new(model),
+            perturbed: vec![0.0; nq],
+            offset: vec![0.0; nq],
+            forcing: vec![0.0; nq],
+            point: vec![0.0; nq],
+            excursion: vec![0.0; nq],
+            values: vec![0.0; nb],
+            jacobian: vec![0.0; nb * nq],
+            jdot_qd: vec![0.0; nb],
+            zero: vec![0.0; nq],
+            floor: vec![0.0; nb * samples],
+            guess: vec![0.0; nq],
+            plant: PlantWorkspace::new(model),
+            integrator: Rosenbrock::new(2 * nq, prediction_tolerances())
+                .expect("the prediction's tolerances are valid"),
+            state: vec![0.0; 2 * nq],
+        }
+    }
 }
 
 impl Controller {
@@ -289,12 +424,20 @@ impl Controller {
         let (nq, nb) = (model.nq(), model.nb());
         settings.validate(nq)?;
         let (limit_rows, limit_rhs) = &settings.input_limits;
-        let rows = nb + limit_rhs.len();
+        let sampled = (settings.safety == SafetyMode::Sampled)
+            .then(|| SampledWorkspace::new(model, &settings.sampled));
+        // With the sampled-data rows, one row per barrier and sample, then one per barrier
+        // for the end of the hold.
+        let barrier_rows = match &sampled {
+            Some(sampled) => nb * (sampled.prediction.samples() + 1),
+            None => nb,
+        };
+        let rows = barrier_rows + limit_rhs.len();
         let qp = SafetyQp::new(nq, rows, settings.qp)?;
         let mut constraint_rows = vec![0.0; rows * nq];
-        constraint_rows[nb * nq..].copy_from_slice(limit_rows);
+        constraint_rows[barrier_rows * nq..].copy_from_slice(limit_rows);
         let mut constraint_rhs = vec![0.0; rows];
-        constraint_rhs[nb..].copy_from_slice(limit_rhs);
+        constraint_rhs[barrier_rows..].copy_from_slice(limit_rhs);
         let [p1, p2] = settings.barrier_gains;
         let barrier_gains = (0..nb)
             .map(|k| {
@@ -319,6 +462,8 @@ impl Controller {
             qp,
             barrier_gains,
             gain_scale: 1.0,
+            barrier_rows,
+            sampled,
         })
     }
 
@@ -381,10 +526,17 @@ impl Controller {
         self.barrier_terms.jacobian()
     }
 
-    /// HOCBF rows `A = J M⁻¹` (row-major, the first `nb` rows; the input limits follow) and
-    /// right-hand sides `b` of the last tick: the filtered `τ` satisfies `A τ ≥ b`.
+    /// The safety rows (row-major, `nq` columns) and right-hand sides `b` of the last tick:
+    /// the filtered `τ` satisfies `A τ ≥ b`. First the barriers' rows
+    /// ([`Controller::barrier_of_row`]: the HOCBF rows `A = J M⁻¹`, one per barrier, or the
+    /// sampled-data rows, one per barrier and sample), then the input limits.
     pub fn constraints(&self) -> (&[f64], &[f64]) {
         (&self.rows, &self.rhs)
+    }
+
+    /// The barrier a safety row keeps (`None` for an input limit's row).
+    pub fn barrier_of_row(&self, row: usize) -> Option<usize> {
+        (row < self.barrier_rows).then(|| row % self.nb.max(1))
     }
 
     /// Report of the last QP solve (statuses, iterations, relaxed rows).
@@ -531,6 +683,9 @@ pub fn tick(
         controller.tau.copy_from_slice(&controller.tau_nom);
         return TickStatus::Unfiltered;
     }
+    if controller.sampled.is_some() {
+        return sampled_filter(model, controller, q, qd);
+    }
 
     // Rows A_k = J_k M⁻¹ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k
     // (with the hold correction: S⁻¹ for M⁻¹ and n + Δ K q̇ for n).
@@ -580,6 +735,242 @@ pub fn tick(
             - (p1 + p2) * dot(jacobian_row, qd)
             - p1 * p2 * barriers.values()[k];
     }
+    solve_rows(controller)
+}
+
+/// The sampled-data rows and their QP passes (docs/model.md §5): for every barrier `k` and
+/// sample `t_j` of the hold, `b_k(q(t_j)) ≥ max(ψ_k(t_j), 0)`, linearized in `τ` with the
+/// sensitivity `Γ_j = ∂q(t_j)/∂τ` of [`HoldPrediction`]. The first pass predicts `q(t_j)`
+/// by the linearized dynamics (`q₀ + a_j + Γ_j (τ − g₀)`); each further pass integrates the
+/// nonlinear plant under the previous pass's command `τ'` and keeps
+/// `b_k(q'(t_j)) + J_k(q'(t_j)) Γ_j (τ − τ') ≥ max(ψ_k(t_j), 0)`.
+fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) -> TickStatus {
+    let (nq, nb) = (controller.nq, controller.nb);
+    let Some(sampled) = controller.sampled.as_mut() else {
+        return controller.fallback(InvalidState::NonFiniteModel);
+    };
+    let ws = &controller.dynamics;
+    cholesky_inverse(
+        &ws.cholesky,
+        nq,
+        &mut controller.inverse_mass,
+        &mut controller.scratch,
+    );
+    let hold = controller.settings.hold;
+    if !gravity_stiffness(model, sampled, q) {
+        return controller.fallback(InvalidState::NonFiniteModel);
+    }
+    let predicted = sampled.prediction.predict(
+        &controller.inverse_mass,
+        &sampled.stiffness,
+        &model.damping,
+        qd,
+        hold,
+    );
+    if !predicted {
+        return controller.fallback(InvalidState::NonFiniteModel);
+    }
+    for (i, offset) in sampled.offset.iter_mut().enumerate() {
+        *offset = ws.nonlinear[i] + model.stiffness[i] * q[i];
+    }
+    let m = sampled.prediction.samples();
+    let barriers = &controller.barrier_terms;
+    let scale = controller.gain_scale;
+    for k in 0..nb {
+        let [p1, p2] = controller.barrier_gains[k].map(|p| p * scale);
+        let b = barriers.values()[k];
+        // The floor decays at the rate p1; an approach already faster than p1·b (from the
+        // previous command) is given the time 1/p2 to slow down, and no credit is taken for
+        // a barrier moving away.
+        let b_dot = dot(&barriers.jacobian()[k * nq..(k + 1) * nq], qd).min(-p1 * b);
+        for j in 0..m {
+            let t = sampled.prediction.time(j);
+            sampled.floor[j * nb + k] = comparison(b, b_dot, p1, p2, t).max(0.0);
+        }
+    }
+
+    // Pass 1: b_k(q₀ + e) ≈ b_k + J_k e.
+    for j in 0..m {
+        let (free, forced) = (sampled.prediction.free(j), sampled.prediction.forced(j));
+        for k in 0..nb {
+            let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
+            let r = j * nb + k;
+            let row = &mut controller.rows[r * nq..(r + 1) * nq];
+            forced_row(jacobian_row, forced, nq, row);
+            controller.rhs[r] = sampled.floor[r] - barriers.values()[k] - dot(jacobian_row, free)
+                + dot(row, &sampled.offset);
+        }
+    }
+    // The end of the hold: ḃ + p1 b ≥ 0 there, with ḃ ≈ J (ȧ + Γ̇ u), b ≈ b + J (a + Γ u).
+    let (free, forced) = (
+        sampled.prediction.free(m - 1),
+        sampled.prediction.forced(m - 1),
+    );
+    let (free_velocity, forced_velocity) = (
+        sampled.prediction.end_velocity_free(),
+        sampled.prediction.end_velocity_forced(),
+    );
+    for k in 0..nb {
+        let p1 = controller.barrier_gains[k][0] * scale;
+        let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
+        let r = m * nb + k;
+        let row = &mut controller.rows[r * nq..(r + 1) * nq];
+        end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
+        controller.rhs[r] = -dot(jacobian_row, free_velocity)
+            - p1 * (barriers.values()[k] + dot(jacobian_row, free))
+            + dot(row, &sampled.offset);
+    }
+    let mut status = solve_rows(controller);
+    for _ in 1..controller.settings.sampled.passes {
+        if status.is_fallback() {
+            break;
+        }
+        let Some(sampled) = controller.sampled.as_mut() else {
+            break;
+        };
+        sampled.guess.copy_from_slice(&controller.tau);
+        sampled.plant.tau_mut().copy_from_slice(&controller.tau);
+        sampled.state[..nq].copy_from_slice(q);
+        sampled.state[nq..].copy_from_slice(qd);
+        sampled.integrator.reset();
+        let mut time = 0.0;
+        for j in 0..m {
+            // The motion under the previous command, integrated to t_j; where the
+            // integration fails or leaves the model's domain, the rows of the previous pass
+            // stay for this sample and every later one.
+            let next = sampled.prediction.time(j);
+            let mut system = PlantSystem {
+                model,
+                workspace: &mut sampled.plant,
+            };
+            if sampled
+                .integrator
+                .integrate(&mut system, time, next, &mut sampled.state)
+                .is_err()
+            {
+                break;
+            }
+            time = next;
+            sampled.point.copy_from_slice(&sampled.state[..nq]);
+            if softcbf_description::domain::state_problem(
+                &model.robot,
+                &sampled.point,
+                &sampled.zero,
+            )
+            .is_some()
+            {
+                break;
+            }
+            model.generated.barrier_terms(
+                &model.params,
+                &sampled.point,
+                &sampled.zero,
+                &mut sampled.values,
+                &mut sampled.jacobian,
+                &mut sampled.jdot_qd,
+            );
+            if !(all_finite(&sampled.values) && all_finite(&sampled.jacobian)) {
+                break;
+            }
+            let forced = sampled.prediction.forced(j);
+            for k in 0..nb {
+                let jacobian_row = &sampled.jacobian[k * nq..(k + 1) * nq];
+                let r = j * nb + k;
+                let row = &mut controller.rows[r * nq..(r + 1) * nq];
+                forced_row(jacobian_row, forced, nq, row);
+                controller.rhs[r] = sampled.floor[r] - sampled.values[k] + dot(row, &sampled.guess);
+            }
+            if j + 1 == m {
+                let forced_velocity = sampled.prediction.end_velocity_forced();
+                let velocity = &sampled.state[nq..];
+                for k in 0..nb {
+                    let p1 = controller.barrier_gains[k][0] * scale;
+                    let jacobian_row = &sampled.jacobian[k * nq..(k + 1) * nq];
+                    let r = m * nb + k;
+                    let row = &mut controller.rows[r * nq..(r + 1) * nq];
+                    end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
+                    controller.rhs[r] = -dot(jacobian_row, velocity) - p1 * sampled.values[k]
+                        + dot(row, &sampled.guess);
+                }
+            }
+        }
+        status = solve_rows(controller);
+    }
+    status
+}
+
+/// Step of the central differences of `G` \[m\]: their truncation error (`~δ² G‴`) and
+/// rounding error (`~ε G / δ`) are both far below 1e-9 of `G` here.
+const GRAVITY_STEP: f64 = 1e-6;
+
+/// `K̃ = K + ∂G/∂q` at `q` into `sampled.stiffness`, column by column from central
+/// differences of `G`; `false` if a perturbed state leaves the domain or `G` is not finite.
+fn gravity_stiffness(model: &Model, sampled: &mut SampledWorkspace, q: &[f64]) -> bool {
+    let nq = q.len();
+    sampled.stiffness.fill(0.0);
+    for c in 0..nq {
+        for (sign, weight) in [(1.0, 0.5 / GRAVITY_STEP), (-1.0, -0.5 / GRAVITY_STEP)] {
+            sampled.perturbed.copy_from_slice(q);
+            sampled.perturbed[c] += sign * GRAVITY_STEP;
+            let evaluated = update_joints(
+                model,
+                &mut sampled.gravity,
+                &sampled.perturbed,
+                &sampled.zero,
+            )
+            .and_then(|()| bias_and_gravity(model, &mut sampled.gravity, &sampled.zero));
+            if evaluated.is_err() || !all_finite(&sampled.gravity.gravity) {
+                return false;
+            }
+            for r in 0..nq {
+                sampled.stiffness[r * nq + c] += weight * sampled.gravity.gravity[r];
+            }
+        }
+    }
+    for (i, k) in model.stiffness.iter().enumerate() {
+        sampled.stiffness[i * nq + i] += k;
+    }
+    true
+}
+
+/// `row = J_k Γ_j` (`Γ_j` row-major `nq × nq`), skipping the zero entries of `J_k`.
+fn forced_row(jacobian_row: &[f64], forced: &[f64], nq: usize, row: &mut [f64]) {
+    row.fill(0.0);
+    for (c, &j) in jacobian_row.iter().enumerate() {
+        if j != 0.0 {
+            for (a, g) in row.iter_mut().zip(&forced[c * nq..(c + 1) * nq]) {
+                *a += j * g;
+            }
+        }
+    }
+}
+
+/// `row = J_k (Γ̇ + p1 Γ)`: how `ḃ + p1 b` at the end of the hold moves with `τ`.
+fn end_row(
+    jacobian_row: &[f64],
+    forced: &[f64],
+    forced_velocity: &[f64],
+    p1: f64,
+    nq: usize,
+    row: &mut [f64],
+) {
+    row.fill(0.0);
+    for (c, &j) in jacobian_row.iter().enumerate() {
+        if j != 0.0 {
+            let columns = c * nq..(c + 1) * nq;
+            for ((a, g), v) in row
+                .iter_mut()
+                .zip(&forced[columns.clone()])
+                .zip(&forced_velocity[columns])
+            {
+                *a += j * (v + p1 * g);
+            }
+        }
+    }
+}
+
+/// Checks the rows and solves the safety QP into `τ`.
+fn solve_rows(controller: &mut Controller) -> TickStatus {
     if !(all_finite(&controller.rows) && all_finite(&controller.rhs)) {
         return controller.fallback(InvalidState::NonFiniteModel);
     }

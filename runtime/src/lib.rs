@@ -54,6 +54,7 @@ pub mod control;
 pub mod dynamics;
 pub mod exit;
 pub mod hardware;
+pub mod hold;
 pub mod inspect;
 pub mod integrator;
 pub mod linalg;

@@ -194,3 +194,131 @@ mod tests {
         assert!(!lu_in_place(&mut singular, 2, &mut piv[..2]));
     }
 }
+
+/// `exp(A)` of a row-major `n×n` matrix by scaling and squaring with the diagonal (6, 6)
+/// Padé approximant (Moler and Van Loan's method 3): `A` is scaled by `2⁻ˢ` until its
+/// 1-norm is at most ½, where the approximant's relative error is below 1e-16, and the
+/// result is squared `s` times. Preallocated for one size; allocates nothing per call.
+pub struct MatrixExponential {
+    n: usize,
+    scaled: Vec<f64>,
+    square: Vec<f64>,
+    fourth: Vec<f64>,
+    sixth: Vec<f64>,
+    odd: Vec<f64>,
+    even: Vec<f64>,
+    pivots: Vec<usize>,
+    column: Vec<f64>,
+    tmp: Vec<f64>,
+}
+
+/// Coefficients `c_k` of the (6, 6) Padé approximant of `exp`:
+/// `c_0 = 1`, `c_k = c_{k−1} (q − k + 1) / (k (2q − k + 1))` with `q = 6`.
+const PADE_6: [f64; 7] = [
+    1.0,
+    0.5,
+    5.0 / 44.0,
+    1.0 / 66.0,
+    1.0 / 792.0,
+    1.0 / 15840.0,
+    1.0 / 665280.0,
+];
+
+impl MatrixExponential {
+    /// Workspace for `n×n` matrices.
+    pub fn new(n: usize) -> MatrixExponential {
+        let square = || vec![0.0; n * n];
+        MatrixExponential {
+            n,
+            scaled: square(),
+            square: square(),
+            fourth: square(),
+            sixth: square(),
+            odd: square(),
+            even: square(),
+            pivots: vec![0; n],
+            column: vec![0.0; n],
+            tmp: vec![0.0; n],
+        }
+    }
+
+    /// Writes `exp(a)` into `out` (both row-major `n×n`). Returns `false`, leaving `out`
+    /// unspecified, when `a` has a non-finite entry, the sizes differ from the workspace's,
+    /// or the Padé denominator is singular (it is not for a finite `a`).
+    pub fn compute(&mut self, a: &[f64], out: &mut [f64]) -> bool {
+        let n = self.n;
+        if a.len() != n * n || out.len() != n * n || !a.iter().all(|v| v.is_finite()) {
+            return false;
+        }
+        let norm = (0..n)
+            .map(|c| (0..n).map(|r| a[r * n + c].abs()).sum::<f64>())
+            .fold(0.0, f64::max);
+        let squarings = if norm > 0.5 {
+            (norm / 0.5).log2().ceil() as i32
+        } else {
+            0
+        };
+        let scale = 0.5_f64.powi(squarings);
+        for (s, v) in self.scaled.iter_mut().zip(a) {
+            *s = v * scale;
+        }
+        multiply(&self.scaled, &self.scaled, &mut self.square, n);
+        multiply(&self.square, &self.square, &mut self.fourth, n);
+        multiply(&self.fourth, &self.square, &mut self.sixth, n);
+        let c = PADE_6;
+        // even = c0 I + c2 X² + c4 X⁴ + c6 X⁶; tmp-matrix (in `out`) = c1 I + c3 X² + c5 X⁴.
+        for i in 0..n * n {
+            self.even[i] = c[2] * self.square[i] + c[4] * self.fourth[i] + c[6] * self.sixth[i];
+            out[i] = c[3] * self.square[i] + c[5] * self.fourth[i];
+        }
+        for i in 0..n {
+            self.even[i * n + i] += c[0];
+            out[i * n + i] += c[1];
+        }
+        multiply(&self.scaled, out, &mut self.odd, n);
+        // Denominator V − U (LU in `square`), numerator V + U (in `fourth`).
+        for i in 0..n * n {
+            self.square[i] = self.even[i] - self.odd[i];
+            self.fourth[i] = self.even[i] + self.odd[i];
+        }
+        if !lu_in_place(&mut self.square, n, &mut self.pivots) {
+            return false;
+        }
+        for col in 0..n {
+            for r in 0..n {
+                self.column[r] = self.fourth[r * n + col];
+            }
+            lu_solve(
+                &self.square,
+                n,
+                &self.pivots,
+                &mut self.column,
+                &mut self.tmp,
+            );
+            for r in 0..n {
+                out[r * n + col] = self.column[r];
+            }
+        }
+        for _ in 0..squarings {
+            self.sixth.copy_from_slice(out);
+            multiply(&self.sixth, &self.sixth, out, n);
+        }
+        out.iter().all(|v| v.is_finite())
+    }
+}
+
+/// `c = a b` for row-major `n×n` matrices.
+pub fn multiply(a: &[f64], b: &[f64], c: &mut [f64], n: usize) {
+    c[..n * n].fill(0.0);
+    for i in 0..n {
+        for k in 0..n {
+            let aik = a[i * n + k];
+            if aik != 0.0 {
+                let (row_b, row_c) = (&b[k * n..(k + 1) * n], &mut c[i * n..(i + 1) * n]);
+                for (x, y) in row_c.iter_mut().zip(row_b) {
+                    *x += aik * y;
+                }
+            }
+        }
+    }
+}

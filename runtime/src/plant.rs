@@ -20,9 +20,9 @@ use crate::integrator::{
 };
 use crate::model::Model;
 
-/// The plant's equations `ẋ = (q̇, M⁻¹(τ − h − G − K q − D q̇))` for a held `τ`.
-pub struct PlantSystem<'m> {
-    model: &'m Model,
+/// The workspace of the plant's equations for one model: the held `τ` and what the
+/// right-hand side and `W` write. [`PlantSystem`] joins it to its model for a computation.
+pub struct PlantWorkspace {
     dynamics: DynamicsWorkspace,
     tau: Vec<f64>,
     qdd: Vec<f64>,
@@ -32,17 +32,16 @@ pub struct PlantSystem<'m> {
     evaluated_at: Vec<f64>,
 }
 
-impl<'m> PlantSystem<'m> {
-    /// The equations of `model` with `τ = 0`.
-    pub fn new(model: &'m Model) -> PlantSystem<'m> {
+impl PlantWorkspace {
+    /// Storage for `model`'s equations with `τ = 0`.
+    pub fn new(model: &Model) -> PlantWorkspace {
         let nq = model.nq();
         let mut w = MechanicalW::new(nq);
         for (i, (k, d)) in model.stiffness.iter().zip(&model.damping).enumerate() {
             w.stiffness_mut()[i * nq + i] = *k;
             w.damping_mut()[i * nq + i] = *d;
         }
-        PlantSystem {
-            model,
+        PlantWorkspace {
             dynamics: DynamicsWorkspace::new(model),
             tau: vec![0.0; nq],
             qdd: vec![0.0; nq],
@@ -63,6 +62,15 @@ impl<'m> PlantSystem<'m> {
     }
 }
 
+/// The plant's equations `ẋ = (q̇, M⁻¹(τ − h − G − K q − D q̇))` for a held `τ`: a model
+/// and a [`PlantWorkspace`] built for it, as the integrator sees them.
+pub struct PlantSystem<'a> {
+    /// The model whose dynamics are integrated.
+    pub model: &'a Model,
+    /// Its workspace.
+    pub workspace: &'a mut PlantWorkspace,
+}
+
 impl OdeSystem for PlantSystem<'_> {
     fn dim(&self) -> usize {
         2 * self.model.nq()
@@ -71,24 +79,18 @@ impl OdeSystem for PlantSystem<'_> {
     fn rhs(&mut self, _t: f64, x: &[f64], dx: &mut [f64]) -> bool {
         let nq = self.model.nq();
         let (q, qd) = x.split_at(nq);
-        match forward_dynamics(
-            self.model,
-            &mut self.dynamics,
-            q,
-            qd,
-            &self.tau,
-            &mut self.qdd,
-        ) {
+        let ws = &mut *self.workspace;
+        match forward_dynamics(self.model, &mut ws.dynamics, q, qd, &ws.tau, &mut ws.qdd) {
             Ok(()) => {
                 dx[..nq].copy_from_slice(qd);
-                dx[nq..].copy_from_slice(&self.qdd);
-                self.last_error = None;
-                self.evaluated_at.copy_from_slice(x);
+                dx[nq..].copy_from_slice(&ws.qdd);
+                ws.last_error = None;
+                ws.evaluated_at.copy_from_slice(x);
                 true
             }
             Err(error) => {
-                self.last_error = Some(error);
-                self.evaluated_at.fill(f64::NAN);
+                ws.last_error = Some(error);
+                ws.evaluated_at.fill(f64::NAN);
                 false
             }
         }
@@ -97,31 +99,32 @@ impl OdeSystem for PlantSystem<'_> {
 
 impl WSolve for PlantSystem<'_> {
     fn prepare_w(&mut self, _t: f64, x: &[f64], gamma_h: f64) -> bool {
+        let ws = &mut *self.workspace;
         // The integrator evaluates f at a step's start just before preparing W there, so
         // M is usually in the workspace already.
-        if self.evaluated_at != x {
+        if ws.evaluated_at != x {
             let nq = self.model.nq();
             let (q, qd) = x.split_at(nq);
-            let evaluated = update_joints(self.model, &mut self.dynamics, q, qd)
-                .and_then(|()| mass_matrix(self.model, &mut self.dynamics));
+            let evaluated = update_joints(self.model, &mut ws.dynamics, q, qd)
+                .and_then(|()| mass_matrix(self.model, &mut ws.dynamics));
             if evaluated.is_err() {
                 return false;
             }
         }
-        self.w
-            .mass_matrix_mut()
-            .copy_from_slice(&self.dynamics.mass_matrix);
-        self.w.factor(gamma_h)
+        ws.w.mass_matrix_mut()
+            .copy_from_slice(&ws.dynamics.mass_matrix);
+        ws.w.factor(gamma_h)
     }
 
     fn solve_w(&mut self, r: &mut [f64]) -> bool {
-        self.w.solve(r)
+        self.workspace.w.solve(r)
     }
 }
 
 /// The simulated robot: its state, time and integrator.
 pub struct Plant<'m> {
-    system: PlantSystem<'m>,
+    model: &'m Model,
+    system: PlantWorkspace,
     integrator: Rosenbrock,
     state: Vec<f64>,
     time: f64,
@@ -133,7 +136,8 @@ impl<'m> Plant<'m> {
     pub fn new(model: &'m Model, tolerances: Tolerances) -> Result<Plant<'m>, IntegratorError> {
         let nq = model.nq();
         Ok(Plant {
-            system: PlantSystem::new(model),
+            model,
+            system: PlantWorkspace::new(model),
             integrator: Rosenbrock::new(2 * nq, tolerances)?,
             state: vec![0.0; 2 * nq],
             time: 0.0,
@@ -189,9 +193,13 @@ impl<'m> Plant<'m> {
     /// last accepted one, at [`Plant::time`].
     pub fn advance(&mut self, dt: f64) -> Result<(), IntegratorError> {
         let (t0, t1) = (self.time, self.time + dt);
+        let mut system = PlantSystem {
+            model: self.model,
+            workspace: &mut self.system,
+        };
         let result = self
             .integrator
-            .integrate(&mut self.system, t0, t1, &mut self.state);
+            .integrate(&mut system, t0, t1, &mut self.state);
         match result {
             Ok(stats) => {
                 self.stats.accumulate(&stats);

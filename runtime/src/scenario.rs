@@ -405,6 +405,7 @@ impl ScenarioFile {
             filter: filter.value,
             safety: safety.value,
             hold: period,
+            sampled: Default::default(),
             input_limits: (Vec::new(), Vec::new()),
             qp: QpSettings::default(),
         };

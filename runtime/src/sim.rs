@@ -397,6 +397,7 @@ pub fn simulate(
 
     let mut counts = TickCounts::default();
     let mut relaxed_ticks = vec![0usize; nb];
+    let mut relaxed_now = vec![false; nb];
     let mut minimum = BarrierMinimum::none();
     let mut lowest_by_kind = LowestByKind::new(table);
     let mut max_abs_tau = 0.0_f64;
@@ -429,8 +430,16 @@ pub fn simulate(
                 if status == TickStatus::Relaxed {
                     counts.relaxed += 1;
                     // Rows past the barriers are input limits, not barriers.
-                    for &row in report.relaxed_rows.iter().filter(|&&row| row < nb) {
-                        relaxed_ticks[row] += 1;
+                    // A barrier with several relaxed rows (one per sample of the hold)
+                    // counts once per tick; rows past the barriers are input limits.
+                    relaxed_now.fill(false);
+                    for &row in &report.relaxed_rows {
+                        if let Some(k) = controller.barrier_of_row(row) {
+                            relaxed_now[k] = true;
+                        }
+                    }
+                    for (ticks, _) in relaxed_ticks.iter_mut().zip(&relaxed_now).filter(|p| *p.1) {
+                        *ticks += 1;
                     }
                 }
                 if status == TickStatus::QpFailed {
