@@ -63,8 +63,16 @@ pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Result<Value, Dynam
     generated.plate_poses(&model.params, q, &mut poses);
     let elastic: Vec<f64> = q.iter().zip(&model.stiffness).map(|(x, k)| k * x).collect();
     let damping: Vec<f64> = qd.iter().zip(&model.damping).map(|(x, d)| d * x).collect();
+    let uncertainty = &model.robot.uncertainty;
     Ok(json!({
         "robot": model.robot.name,
+        // The robot file's `[uncertainty]` (fractions; force in N): all zero when none.
+        "uncertainty": {
+            "stiffness": uncertainty.stiffness,
+            "damping": uncertainty.damping,
+            "mass": uncertainty.mass,
+            "force": uncertainty.force,
+        },
         "generated_model": generated.name(),
         "n": n,
         "q": q,

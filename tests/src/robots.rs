@@ -1,10 +1,15 @@
-//! The shipped robot files the integration tests load, found from the tests crate's folder.
+//! The shipped robot files the integration tests load, found from the tests crate's folder,
+//! and plant robots drawn inside a robot's declared uncertainty.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use rand::RngExt;
 use softcbf::model::Model;
 use softcbf_description::robot::Robot;
+use softcbf_description::uncertainty::{self, ModuleFactors};
+
+use crate::TestRng;
 
 /// Path of `robots/<name>` in the checkout.
 pub fn path(name: &str) -> PathBuf {
@@ -22,4 +27,45 @@ pub fn hardware_example() -> Robot {
 pub fn hardware_example_model() -> &'static Model {
     static MODEL: OnceLock<Model> = OnceLock::new();
     MODEL.get_or_init(|| Model::new(hardware_example()).expect("the example robot has a model"))
+}
+
+/// Factors for every module of `robot`, each drawn uniformly and independently inside the
+/// box its `[uncertainty]` declares: `κθ`, `κL` factors in `1 ± stiffness`, `βθ`, `βL` in
+/// `1 ± damping`, the mass (and inertia) factor in `1 ± mass`. With nothing declared every
+/// factor is 1 (and no number is drawn).
+pub fn draw_factors(robot: &Robot, rng: &mut TestRng) -> Vec<ModuleFactors> {
+    let u = robot.uncertainty;
+    let mut factor = |fraction: f64| {
+        if fraction > 0.0 {
+            rng.random_range(1.0 - fraction..=1.0 + fraction)
+        } else {
+            1.0
+        }
+    };
+    robot
+        .modules
+        .iter()
+        .map(|_| ModuleFactors {
+            stiffness: [factor(u.stiffness), factor(u.stiffness)],
+            damping: [factor(u.damping), factor(u.damping)],
+            mass: factor(u.mass),
+        })
+        .collect()
+}
+
+/// A plant robot drawn inside `robot`'s declared uncertainty: `robot` scaled
+/// ([`uncertainty::scaled`]) by [`draw_factors`] from `softcbf_tests::rng(seed)`, so the
+/// same seed gives the same plant. Its other numbers, structure and declared uncertainty are
+/// `robot`'s; `uncertainty::contains(robot, &plant)` holds. Panics if a scaled number
+/// leaves the range a robot file may give it (a nominal number near the end of its range).
+pub fn draw_within(robot: &Robot, seed: u64) -> Robot {
+    let factors = draw_factors(robot, &mut crate::rng(seed));
+    uncertainty::scaled(robot, &factors)
+        .unwrap_or_else(|e| panic!("{}: a plant drawn inside its box: {e}", robot.name))
+}
+
+/// `robots/paper-sim-uncertain.toml`: the paper's robot with ±20 % on stiffness, damping
+/// and mass and 0.05 N of unmodelled force declared.
+pub fn paper_sim_uncertain() -> Robot {
+    Robot::load(&path("paper-sim-uncertain.toml")).expect("the shipped robot file is valid")
 }

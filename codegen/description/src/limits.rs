@@ -192,6 +192,17 @@ pub const PLATE_POINT_M: Limit = Limit::closed(-10.0, 10.0, "m");
 /// origin; the base itself never moves).
 pub const ARC_FRACTION: Limit = Limit::above(0.0, 1.0, "");
 
+/// A relative uncertainty of the robot file's `[uncertainty]` table (`stiffness`, `damping`,
+/// `mass`; 0.2 is ±20 %): the true number lies within `(1 ± fraction)` times the file's.
+/// Below 1, because the lower end `1 − fraction` must stay positive: at 1 a plate could be
+/// massless (a singular mass matrix, unbounded accelerations) and a robust margin that
+/// divides by `1 − fraction` unbounded; beyond ±90 % the file no longer knows the number.
+pub const UNCERTAINTY_FRACTION: Limit = Limit::closed(0.0, 0.9, "");
+/// Bound on the unmodelled generalized force on each coordinate \[N\] (`[uncertainty]
+/// force`): up to 1e4 N, the weight of a tonne; a larger force is a missing part of the
+/// model, not an uncertainty of it.
+pub const UNMODELLED_FORCE_N: Limit = Limit::closed(0.0, 1e4, "N");
+
 // ---------------------------------------------------------------------------------------
 // The scenario file (with DURATION_S below).
 

@@ -25,7 +25,7 @@ pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
 use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
-use crate::uncertainty::Uncertainty;
+use crate::uncertainty::{Uncertainty, UncertaintyTable};
 
 /// How tendons are routed (§6 of the model notes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
@@ -209,6 +209,7 @@ struct RobotFile {
     module: Option<Spanned<Vec<ModuleTable>>>,
     limits: Option<LimitsTable>,
     obstacle: Option<Vec<ObstacleTable>>,
+    uncertainty: Option<UncertaintyTable>,
     modules: Option<Spanned<Count>>,
     /// Any table: its fields are the hardware path's to read.
     hardware: Option<Spanned<toml::Table>>,
@@ -342,6 +343,7 @@ impl Checker<'_> {
         let module_limits: Vec<_> = tables.iter().map(|t| t.limits.as_ref()).collect();
         let limits = self.limits(file.limits.as_ref(), &module_limits, &modules)?;
         let obstacles = self.obstacles(file.obstacle.as_deref().unwrap_or_default(), &modules)?;
+        let uncertainty = self.uncertainty(file.uncertainty.as_ref())?;
         let nq = 3 * modules.len();
         let mut gains = FileGains::default();
         if let Some(table) = &file.gains {
@@ -363,7 +365,7 @@ impl Checker<'_> {
             routing: file.routing.unwrap_or(Routing::Local),
             limits,
             obstacles,
-            uncertainty: Uncertainty::default(),
+            uncertainty,
             modules,
             hardware: file.hardware.map(|table| HardwareTable {
                 text: Arc::from(self.text),
