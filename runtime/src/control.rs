@@ -12,9 +12,13 @@
 //! The tick is a pure function of (model, controller workspace, state, reference): it reads
 //! no clock, touches no port and prints nothing, so simulation and hardware share it.
 
+use std::ops::Range;
+
+use softcbf_description::uncertainty::{self, ModuleFactors};
+
 use crate::dynamics::{
     BarrierTerms, DynamicsError, DynamicsWorkspace, bias_and_gravity, factor_mass_matrix,
-    model_terms, update_joints,
+    mass_matrix, model_terms, update_joints,
 };
 use crate::hold::{HoldPrediction, comparison};
 use crate::integrator::{Rosenbrock, Tolerances};
@@ -358,12 +362,10 @@ struct SampledWorkspace {
     stiffness: Vec<f64>,
     gravity: DynamicsWorkspace,
     perturbed: Vec<f64>,
-    /// `g₀ = h + G + K q₀`, and `τ − g₀` for the command of the previous pass.
+    /// `g₀ = h + G + K q₀`.
     offset: Vec<f64>,
-    forcing: Vec<f64>,
     /// The predicted state `q̂ = q₀ + e(t_j)` and the barrier terms there.
     point: Vec<f64>,
-    excursion: Vec<f64>,
     values: Vec<f64>,
     jacobian: Vec<f64>,
     jdot_qd: Vec<f64>,
@@ -377,6 +379,293 @@ struct SampledWorkspace {
     plant: PlantWorkspace,
     integrator: Rosenbrock,
     state: Vec<f64>,
+    /// The robust margin for the declared uncertainty (`None` when none is declared).
+    robust: Option<RobustMargin>,
+}
+
+/// One plant at a corner of the declared box, one number off at a time.
+enum Perturbation {
+    /// `K` of coordinates `coordinates` times `factor`.
+    Stiffness {
+        coordinates: Range<usize>,
+        factor: f64,
+    },
+    /// `D` of `coordinates` times `factor`.
+    Damping {
+        coordinates: Range<usize>,
+        factor: f64,
+    },
+    /// One module's mass and inertia scaled: the plant's own model.
+    Mass(Box<Model>),
+}
+
+/// The robust margin (docs/model.md §5): how much farther each barrier could move toward
+/// its floor, at each sample, on a plant inside the declared box than on the nominal one.
+struct RobustMargin {
+    perturbations: Vec<Perturbation>,
+    force: f64,
+    prediction: HoldPrediction,
+    dynamics: DynamicsWorkspace,
+    stiffness: Vec<f64>,
+    damping: Vec<f64>,
+    inverse_mass: Vec<f64>,
+    scratch: Vec<f64>,
+    /// `τ − g₀` of the perturbed plant, and its excursion at a sample.
+    forcing: Vec<f64>,
+    excursion: Vec<f64>,
+    /// The nominal excursions `e(t_j)` (`m × nq`) and end velocity under the guess.
+    nominal: Vec<f64>,
+    nominal_velocity: Vec<f64>,
+    /// Per perturbed number: the worst extra approach of each row over its two signs.
+    worst: Vec<f64>,
+    /// The margin of every barrier row, sample-major like the rows.
+    margin: Vec<f64>,
+}
+
+impl RobustMargin {
+    /// The perturbed plants of `model`'s declared box: per module, `κθ`, `κL`, `βθ`, `βL`
+    /// and the mass, each at `1 ± fraction`.
+    fn new(model: &Model, samples: &SampledSettings) -> Result<RobustMargin, ControllerError> {
+        let (nq, nb) = (model.nq(), model.nb());
+        let u = model.robot.uncertainty;
+        let mut perturbations = Vec::new();
+        // Pairs: each number at 1 + fraction, then at 1 − fraction.
+        for i in 0..model.n_modules() {
+            for (coordinates, fraction, stiffness) in [
+                (3 * i..3 * i + 2, u.stiffness, true),
+                (3 * i + 2..3 * i + 3, u.stiffness, true),
+                (3 * i..3 * i + 2, u.damping, false),
+                (3 * i + 2..3 * i + 3, u.damping, false),
+            ] {
+                for sign in [1.0, -1.0] {
+                    if fraction > 0.0 {
+                        let coordinates = coordinates.clone();
+                        let factor = 1.0 + sign * fraction;
+                        perturbations.push(if stiffness {
+                            Perturbation::Stiffness {
+                                coordinates,
+                                factor,
+                            }
+                        } else {
+                            Perturbation::Damping {
+                                coordinates,
+                                factor,
+                            }
+                        });
+                    }
+                }
+            }
+            for sign in [1.0, -1.0] {
+                if u.mass > 0.0 {
+                    let mut factors = vec![ModuleFactors::NOMINAL; model.n_modules()];
+                    factors[i].mass = 1.0 + sign * u.mass;
+                    let plant = uncertainty::scaled(&model.robot, &factors)
+                        .map_err(|e| robust_error(e.to_string()))?;
+                    let plant = Model::new(plant).map_err(|e| robust_error(e.to_string()))?;
+                    perturbations.push(Perturbation::Mass(Box::new(plant)));
+                }
+            }
+        }
+        let rows = nb * (samples.samples + samples.early + 1);
+        Ok(RobustMargin {
+            perturbations,
+            force: u.force,
+            prediction: HoldPrediction::new(nq, samples.samples, samples.early),
+            dynamics: DynamicsWorkspace::new(model),
+            stiffness: vec![0.0; nq * nq],
+            damping: vec![0.0; nq],
+            inverse_mass: vec![0.0; nq * nq],
+            scratch: vec![0.0; nq * nq],
+            forcing: vec![0.0; nq],
+            excursion: vec![0.0; nq],
+            nominal: vec![0.0; (samples.samples + samples.early) * nq],
+            nominal_velocity: vec![0.0; nq],
+            worst: vec![0.0; rows],
+            margin: vec![0.0; rows],
+        })
+    }
+}
+
+fn robust_error(reason: String) -> ControllerError {
+    ControllerError::Setting {
+        field: "uncertainty",
+        reason: format!("gives a plant the model cannot take: {reason}"),
+    }
+}
+
+/// Fills `robust.margin` for the command `guess`: for each perturbed number (both signs),
+/// the extra approach `−J_k (e_v(t_j) − e(t_j))` of every barrier row (and
+/// `−J_k (ė_v + p1 e_v − ė − p1 e)` at the end of the hold) on the plant with that number
+/// off, the worse sign taken and the numbers summed; plus the unmodelled force's
+/// `F Σ_i |(J_k Γ_j)_i|`. The deviations are those of the linearized dynamics (docs/model.md §5).
+#[allow(clippy::too_many_arguments)]
+fn robust_margin(
+    model: &Model,
+    robust: &mut RobustMargin,
+    nominal: &HoldPrediction,
+    nominal_stiffness: &[f64],
+    nominal_offset: &[f64],
+    inverse_mass: &[f64],
+    jacobian: &[f64],
+    gains: &[[f64; 2]],
+    scale: f64,
+    guess: &[f64],
+    q: &[f64],
+    qd: &[f64],
+) -> bool {
+    let nq = q.len();
+    let nb = jacobian.len() / nq.max(1);
+    let m = nominal.samples();
+    for (u, (t, g)) in robust
+        .forcing
+        .iter_mut()
+        .zip(guess.iter().zip(nominal_offset))
+    {
+        *u = t - g;
+    }
+    for j in 0..m {
+        nominal.excursion(
+            j,
+            &robust.forcing,
+            &mut robust.nominal[j * nq..(j + 1) * nq],
+        );
+    }
+    end_velocity(nominal, &robust.forcing, &mut robust.nominal_velocity);
+    robust.margin.fill(0.0);
+    for v in 0..robust.perturbations.len() {
+        // Stiffness, damping, mass inverse and offset of the perturbed plant.
+        robust.stiffness.copy_from_slice(nominal_stiffness);
+        robust.damping.copy_from_slice(&model.damping);
+        robust.inverse_mass.copy_from_slice(inverse_mass);
+        robust.forcing.copy_from_slice(nominal_offset);
+        match &robust.perturbations[v] {
+            Perturbation::Stiffness {
+                coordinates,
+                factor,
+            } => {
+                for c in coordinates.clone() {
+                    let extra = (factor - 1.0) * model.stiffness[c];
+                    robust.stiffness[c * nq + c] += extra;
+                    robust.forcing[c] += extra * q[c];
+                }
+            }
+            Perturbation::Damping {
+                coordinates,
+                factor,
+            } => {
+                for c in coordinates.clone() {
+                    robust.damping[c] *= factor;
+                }
+            }
+            Perturbation::Mass(plant) => {
+                let evaluated = update_joints(plant, &mut robust.dynamics, q, qd)
+                    .and_then(|()| mass_matrix(plant, &mut robust.dynamics))
+                    .and_then(|()| bias_and_gravity(plant, &mut robust.dynamics, qd))
+                    .and_then(|()| factor_mass_matrix(&mut robust.dynamics));
+                if evaluated.is_err() {
+                    return false;
+                }
+                cholesky_inverse(
+                    &robust.dynamics.cholesky,
+                    nq,
+                    &mut robust.inverse_mass,
+                    &mut robust.scratch,
+                );
+                for (c, f) in robust.forcing.iter_mut().enumerate() {
+                    *f = robust.dynamics.nonlinear[c] + model.stiffness[c] * q[c];
+                }
+            }
+        }
+        if !robust.prediction.predict(
+            &robust.inverse_mass,
+            &robust.stiffness,
+            &robust.damping,
+            qd,
+            nominal.time(m - 1),
+        ) {
+            return false;
+        }
+        // forcing ← τ − g₀ of this plant.
+        for (f, t) in robust.forcing.iter_mut().zip(guess) {
+            *f = t - *f;
+        }
+        // The second of a pair (the number at 1 − fraction) closes it.
+        let sign_pair = v % 2 == 1;
+        for j in 0..=m {
+            if j < m {
+                robust
+                    .prediction
+                    .excursion(j, &robust.forcing, &mut robust.excursion);
+                for (e, n) in robust
+                    .excursion
+                    .iter_mut()
+                    .zip(&robust.nominal[j * nq..(j + 1) * nq])
+                {
+                    *e -= n;
+                }
+            } else {
+                // ė_v + p1 e_v − ė − p1 e at the end, p1 per barrier below.
+                end_velocity(
+                    &robust.prediction,
+                    &robust.forcing,
+                    &mut robust.scratch[..nq],
+                );
+                robust
+                    .prediction
+                    .excursion(m - 1, &robust.forcing, &mut robust.excursion);
+                for c in 0..nq {
+                    robust.excursion[c] -= robust.nominal[(m - 1) * nq + c];
+                    robust.scratch[c] -= robust.nominal_velocity[c];
+                }
+            }
+            for k in 0..nb {
+                let row = &jacobian[k * nq..(k + 1) * nq];
+                let mut approach = -dot(row, &robust.excursion);
+                if j == m {
+                    approach = -dot(row, &robust.scratch[..nq]) + gains[k][0] * scale * approach;
+                }
+                let r = j * nb + k;
+                robust.worst[r] = if sign_pair {
+                    robust.worst[r].max(approach)
+                } else {
+                    approach
+                };
+                if sign_pair {
+                    robust.margin[r] += robust.worst[r].max(0.0);
+                }
+            }
+        }
+    }
+    if robust.force > 0.0 {
+        for j in 0..m {
+            let forced = nominal.forced(j);
+            for k in 0..nb {
+                let row = &jacobian[k * nq..(k + 1) * nq];
+                let reach: f64 = (0..nq)
+                    .map(|c| {
+                        (0..nq)
+                            .map(|i| row[i] * forced[i * nq + c])
+                            .sum::<f64>()
+                            .abs()
+                    })
+                    .sum();
+                robust.margin[j * nb + k] += robust.force * reach;
+            }
+        }
+    }
+    robust.margin.iter().all(|v| v.is_finite())
+}
+
+/// `ė(Δ) = ȧ + Γ̇ u` of a prediction for the held `u = τ − g₀`.
+fn end_velocity(prediction: &HoldPrediction, u: &[f64], out: &mut [f64]) {
+    let nq = u.len();
+    let (free, forced) = (
+        prediction.end_velocity_free(),
+        prediction.end_velocity_forced(),
+    );
+    for i in 0..nq {
+        out[i] = free[i] + dot(&forced[i * nq..(i + 1) * nq], u);
+    }
 }
 
 /// Error control of the prediction between samples: far tighter than the barriers'
@@ -401,9 +690,7 @@ impl SampledWorkspace {
             gravity: DynamicsWorkspace::new(model),
             perturbed: vec![0.0; nq],
             offset: vec![0.0; nq],
-            forcing: vec![0.0; nq],
             point: vec![0.0; nq],
-            excursion: vec![0.0; nq],
             values: vec![0.0; nb],
             jacobian: vec![0.0; nb * nq],
             jdot_qd: vec![0.0; nb],
@@ -414,6 +701,7 @@ impl SampledWorkspace {
             integrator: Rosenbrock::new(2 * nq, prediction_tolerances())
                 .expect("the prediction's tolerances are valid"),
             state: vec![0.0; 2 * nq],
+            robust: None,
         }
     }
 }
@@ -426,6 +714,12 @@ impl Controller {
         let (limit_rows, limit_rhs) = &settings.input_limits;
         let sampled = (settings.safety == SafetyMode::Sampled)
             .then(|| SampledWorkspace::new(model, &settings.sampled));
+        let mut sampled = sampled;
+        if let Some(sampled) = sampled.as_mut()
+            && model.robot.uncertainty.is_declared()
+        {
+            sampled.robust = Some(RobustMargin::new(model, &settings.sampled)?);
+        }
         // With the sampled-data rows, one row per barrier and sample, then one per barrier
         // for the end of the hold.
         let barrier_rows = match &sampled {
@@ -829,6 +1123,25 @@ fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f
             break;
         };
         sampled.guess.copy_from_slice(&controller.tau);
+        if let Some(robust) = sampled.robust.as_mut() {
+            let computed = robust_margin(
+                model,
+                robust,
+                &sampled.prediction,
+                &sampled.stiffness,
+                &sampled.offset,
+                &controller.inverse_mass,
+                controller.barrier_terms.jacobian(),
+                &controller.barrier_gains,
+                scale,
+                &sampled.guess,
+                q,
+                qd,
+            );
+            if !computed {
+                return controller.fallback(InvalidState::NonFiniteModel);
+            }
+        }
         sampled.plant.tau_mut().copy_from_slice(&controller.tau);
         sampled.state[..nq].copy_from_slice(q);
         sampled.state[nq..].copy_from_slice(qd);
@@ -878,7 +1191,12 @@ fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f
                 let r = j * nb + k;
                 let row = &mut controller.rows[r * nq..(r + 1) * nq];
                 forced_row(jacobian_row, forced, nq, row);
-                controller.rhs[r] = sampled.floor[r] - sampled.values[k] + dot(row, &sampled.guess);
+                controller.rhs[r] = sampled.floor[r] - sampled.values[k]
+                    + dot(row, &sampled.guess)
+                    + sampled
+                        .robust
+                        .as_ref()
+                        .map_or(0.0, |robust| robust.margin[r]);
             }
             if j + 1 == m {
                 let forced_velocity = sampled.prediction.end_velocity_forced();
@@ -890,7 +1208,11 @@ fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f
                     let row = &mut controller.rows[r * nq..(r + 1) * nq];
                     end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
                     controller.rhs[r] = -dot(jacobian_row, velocity) - p1 * sampled.values[k]
-                        + dot(row, &sampled.guess);
+                        + dot(row, &sampled.guess)
+                        + sampled
+                            .robust
+                            .as_ref()
+                            .map_or(0.0, |robust| robust.margin[r]);
                 }
             }
         }

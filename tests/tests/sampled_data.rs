@@ -162,6 +162,7 @@ fn random_set_point(rng: &mut softcbf_tests::TestRng, modules: usize) -> Vec<f64
 #[test]
 #[ignore = "exploration: random set points"]
 fn explore_random() {
+    use rand::RngExt;
     let model = match std::env::var("ROBOT") {
         Ok(path) => Model::new(Robot::load(std::path::Path::new(&path)).unwrap()).unwrap(),
         Err(_) => Model::new(Robot::paper_sim()).unwrap(),
@@ -198,7 +199,15 @@ fn explore_random() {
             if let Ok(n) = std::env::var("PASSES") {
                 s.sampled.passes = n.parse().unwrap();
             }
-            let outcome = closed_loop(&model, &model, s, &set_point, PERIOD, 5.0, 1e-3);
+            let plant = match std::env::var("DRAW") {
+                Ok(_) => Model::new(softcbf_tests::robots::draw_within(
+                    &model.robot,
+                    rng.random(),
+                ))
+                .unwrap(),
+                Err(_) => Model::new(model.robot.clone()).unwrap(),
+            };
+            let outcome = closed_loop(&model, &plant, s, &set_point, PERIOD, 5.0, 1e-3);
             if outcome.lowest < worst[i].0 {
                 worst[i] = (outcome.lowest, set_point.clone());
             }
