@@ -12,7 +12,7 @@ use softcbf_description::robot::Robot;
 use crate::cli::{check_number, parse_coordinates};
 use crate::exit;
 use crate::hardware::description::{self, Hardware};
-use crate::hardware::emulator::{self, EmulatorSettings, Faults};
+use crate::hardware::emulator::{self, EmulatorSettings, Faults, Preset};
 use crate::hardware::limits as servo;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::{self, RunSettings, RunSummary, StopReason, Verdict};
@@ -36,10 +36,34 @@ pub struct EmulateArgs {
     /// Baud rate used to pace replies (bit/s) (default: the robot file's).
     #[arg(long, allow_negative_numbers = true)]
     pub baud: Option<i64>,
+    /// Realism to start from: `ideal` (replies as soon as the wire allows, exact readings)
+    /// or `factory` (also `realistic`: an FTDI adapter such as the U2D2 and X-series servos
+    /// as shipped: latency timer 16 ms, Return Delay Time 500 µs, noise of 1 unit). The
+    /// options below win over it.
+    #[arg(long, value_name = "NAME", default_value = "ideal", value_parser = Preset::parse)]
+    pub preset: Preset,
+    /// A second robot file, the "true" robot: its numbers (stiffness, damping, masses,
+    /// geometry) move the servos, while IDs, units and calibration come from --robot. It
+    /// must have the same structure.
+    #[arg(long, value_name = "FILE")]
+    pub plant: Option<PathBuf>,
+    /// Latency timer of the USB adapter (ms), 0 to 255: bytes from the servos reach the
+    /// host when it expires or 62 of them fill a USB packet (FTDI's factory value 16; 1 is
+    /// the usual tuned one; 0: no adapter) (default: the preset's).
+    #[arg(long, allow_negative_numbers = true)]
+    pub latency_timer_ms: Option<i64>,
     /// Return Delay Time of the servos (µs), 0 to 508 (X-series factory default 500; 0 is
-    /// usual).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub return_delay_us: f64,
+    /// usual) (default: the preset's). A write to the register changes it.
+    #[arg(long, allow_negative_numbers = true)]
+    pub return_delay_us: Option<f64>,
+    /// Standard deviation of Gaussian noise on Present Position, in position units, 0 to
+    /// 1000 (default: the preset's).
+    #[arg(long, allow_negative_numbers = true)]
+    pub noise_position: Option<f64>,
+    /// Standard deviation of Gaussian noise on Present Velocity, in velocity units, 0 to
+    /// 1000 (default: the preset's).
+    #[arg(long, allow_negative_numbers = true)]
+    pub noise_velocity: Option<f64>,
     /// Fraction of status packets not sent (0..1).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub drop: f64,
@@ -59,7 +83,7 @@ pub struct EmulateArgs {
     /// --silent-servo falls silent.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub silent_after: f64,
-    /// Seed of the fault draws.
+    /// Seed of the fault draws and of the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
 }
@@ -148,7 +172,47 @@ fn load(path: &Path) -> Result<(Robot, Hardware), String> {
     }
 }
 
-/// The emulator's settings from its options, each checked against its range.
+/// The plant robot of `--plant`, if given: read, checked and of `robot`'s structure.
+pub fn plant_robot(args: &EmulateArgs, robot: &Robot) -> Result<Option<Robot>, String> {
+    let Some(path) = &args.plant else {
+        return Ok(None);
+    };
+    let plant = Robot::load(path).map_err(|e| format!("--plant: {e}"))?;
+    emulator::check_plant(robot, &plant).map_err(|e| format!("--plant: {e}"))?;
+    Ok(Some(plant))
+}
+
+/// One line saying how real the emulator is asked to be.
+pub fn realism_line(args: &EmulateArgs, settings: &EmulatorSettings) -> String {
+    let mut parts = vec![format!("preset {}", args.preset.name())];
+    parts.push(if settings.latency_timer.is_zero() {
+        "no adapter latency".to_string()
+    } else {
+        format!(
+            "adapter latency timer {} ms",
+            settings.latency_timer.as_millis()
+        )
+    });
+    parts.push(format!(
+        "return delay {} µs",
+        settings.return_delay.as_micros()
+    ));
+    parts.push(if settings.noise.is_on() {
+        format!(
+            "noise σ {} position / {} velocity units (seed {})",
+            settings.noise.position, settings.noise.velocity, settings.noise.seed
+        )
+    } else {
+        "no noise".to_string()
+    });
+    if let Some(path) = &args.plant {
+        parts.push(format!("plant {}", path.display()));
+    }
+    format!("realism: {}", parts.join(", "))
+}
+
+/// The emulator's settings from its options, each checked against its range (the plant
+/// robot is [`plant_robot`]'s).
 pub fn emulator_settings(
     args: &EmulateArgs,
     hardware: &Hardware,
@@ -157,11 +221,6 @@ pub fn emulator_settings(
         Some(b) => servo::check_baud(b).map_err(|m| format!("--baud: {m}"))?,
         None => hardware.baud,
     };
-    let return_delay = check_number(
-        "--return-delay-us",
-        args.return_delay_us,
-        &servo::RETURN_DELAY_US,
-    )?;
     let delay = check_number("--delay-ms", args.delay_ms, &servo::DELAY_MS)?;
     let silent_after = check_number("--silent-after", args.silent_after, &servo::SILENT_AFTER_S)?;
     let silent_servo = match args.silent_servo {
@@ -180,7 +239,24 @@ pub fn emulator_settings(
         None => None,
     };
     let mut settings = EmulatorSettings::new(baud);
-    settings.return_delay = Duration::from_secs_f64(return_delay * 1e-6);
+    args.preset.apply(&mut settings);
+    if let Some(us) = args.return_delay_us {
+        let us = check_number("--return-delay-us", us, &servo::RETURN_DELAY_US)?;
+        settings.return_delay = Duration::from_secs_f64(us * 1e-6);
+    }
+    if let Some(ms) = args.latency_timer_ms {
+        let ms = servo::LATENCY_TIMER_MS
+            .check_integer(ms)
+            .map_err(|m| format!("--latency-timer-ms: {m}"))?;
+        settings.latency_timer = Duration::from_millis(ms.unsigned_abs());
+    }
+    if let Some(units) = args.noise_position {
+        settings.noise.position = check_number("--noise-position", units, &servo::NOISE_UNITS)?;
+    }
+    if let Some(units) = args.noise_velocity {
+        settings.noise.velocity = check_number("--noise-velocity", units, &servo::NOISE_UNITS)?;
+    }
+    settings.noise.seed = args.seed;
     settings.faults = Faults {
         drop: check_number("--drop", args.drop, &servo::FRACTION)?,
         corrupt: check_number("--corrupt", args.corrupt, &servo::FRACTION)?,
@@ -199,7 +275,9 @@ pub fn emulate(args: EmulateArgs, console: &mut Console) -> Result<u8, String> {
     use serialport::{SerialPort, TTYPort};
     let stop = signal::stop_flag();
     let (robot, hardware) = load(&args.robot)?;
-    let settings = emulator_settings(&args, &hardware)?;
+    let mut settings = emulator_settings(&args, &hardware)?;
+    settings.plant = plant_robot(&args, &robot)?;
+    let realism = realism_line(&args, &settings);
     let (mut master, slave) =
         TTYPort::pair().map_err(|e| format!("cannot open a pseudo-terminal: {e}"))?;
     master
@@ -218,6 +296,7 @@ pub fn emulate(args: EmulateArgs, console: &mut Console) -> Result<u8, String> {
             ids.join(", "),
             robot.name
         ));
+        console.say(&realism);
         console.say(&format!("port: {path}"));
         console.say(&format!(
             "connect with: softcbf run --robot {} --port {path}",

@@ -66,6 +66,12 @@ pub const FRACTION: Limit = Limit::closed(0.0, 1.0, "");
 pub const RETURN_DELAY_US: Limit = Limit::closed(0.0, 508.0, "µs");
 /// Seconds after the start when a servo falls silent (up to about 11 days).
 pub const SILENT_AFTER_S: Limit = Limit::closed(0.0, 1e6, "s");
+/// Latency timer of the emulated USB adapter \[ms\]: FTDI chips take 1 to 255 in steps of
+/// 1 ms (16 from the factory); 0 models no adapter (bytes reach the host as they cross).
+pub const LATENCY_TIMER_MS: Limit = Limit::integer(0, 255);
+/// Standard deviation of the emulated sensor noise, in register units (Present Position or
+/// Present Velocity units): up to a thousand, a quarter turn of position.
+pub const NOISE_UNITS: Limit = Limit::closed(0.0, 1000.0, "units");
 
 /// The X-series Baud Rate register value of `baud`, if it is a supported rate.
 pub fn baud_register(baud: u32) -> Option<u8> {
@@ -130,6 +136,8 @@ mod tests {
             FRACTION,
             RETURN_DELAY_US,
             SILENT_AFTER_S,
+            LATENCY_TIMER_MS,
+            NOISE_UNITS,
             VELOCITY_FILTER_MS,
             MODEL_NUMBER,
             CURRENT_UNIT_MA,

@@ -1,6 +1,7 @@
-//! The emulated bus without I/O: bytes in with the time they arrived, status packets out
-//! with the time they are due, timers (packet timeout, Bus Watchdog) run by [`Device::poll`].
-//! [`super::serve`] wraps it around a port; tests drive it with times of their choosing.
+//! The emulated bus without I/O: bytes in with the time they arrived, bytes out with the
+//! time the host gets them (through the USB adapter's latency timer, if one is set), timers
+//! (packet timeout, Bus Watchdog) run by [`Device::poll`]. [`super::serve`] wraps it around
+//! a port; tests drive it with times of their choosing.
 //!
 //! Every method takes the time as an argument and none reads the clock, so a run is a pure
 //! function of its inputs. Events are handled in time order: a request is executed when
@@ -21,6 +22,7 @@ use crate::protocol::{
     encode_status, parse_sync_write, parse_write,
 };
 
+use super::adapter::{Adapter, Delivery};
 use super::servos::{Reply, Servos};
 use super::{EmulatorError, EmulatorLog, EmulatorSettings, Faults, ReplyFate, StateReply};
 
@@ -45,18 +47,13 @@ pub fn packet_timeout(length_field: Option<u16>, baud: u32) -> Duration {
     super::wire_time(bytes, baud) + PACKET_TIMEOUT_MARGIN
 }
 
-/// A status packet ready for the wire.
+/// A status packet on its way over the bus.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Outgoing {
-    /// When its last byte is on the bus: write it then.
-    pub due: Instant,
-    /// The sender.
-    pub id: u8,
-    /// Sent intact, late or corrupted ([`ReplyFate`]; dropped and silenced ones are not
-    /// sent at all).
-    pub fate: ReplyFate,
+struct Outgoing {
+    /// When its last byte is on the bus.
+    due: Instant,
     /// The encoded packet.
-    pub bytes: Vec<u8>,
+    bytes: Vec<u8>,
 }
 
 /// What a servo makes of a packet that reached it.
@@ -93,7 +90,10 @@ pub struct Device<'m> {
     /// `(offset of its first byte, arrival)` of each chunk still partly undecoded.
     chunks: VecDeque<(u64, Instant)>,
     requests: VecDeque<Request>,
+    /// Status packets for the host as they end on the bus (no adapter)…
     outgoing: VecDeque<Outgoing>,
+    /// …or through the USB adapter's latency timer.
+    adapter: Option<Adapter>,
     bus_free: Instant,
     start: Instant,
     origin: f64,
@@ -121,7 +121,8 @@ impl<'m> Device<'m> {
         let baud_register = crate::hardware::limits::baud_register(settings.baud).unwrap_or(3);
         let delay_register = (settings.return_delay.as_micros() / 2).min(254) as u8;
         let origin = plant.time();
-        let servos = Servos::new(map, plant, baud_register, delay_register);
+        let mut servos = Servos::new(map, plant, baud_register, delay_register);
+        servos.set_noise(settings.noise);
         let n = servos.ids().len();
         Ok(Device {
             servos,
@@ -132,6 +133,8 @@ impl<'m> Device<'m> {
             chunks: VecDeque::new(),
             requests: VecDeque::new(),
             outgoing: VecDeque::new(),
+            adapter: (!settings.latency_timer.is_zero())
+                .then(|| Adapter::new(settings.latency_timer, start)),
             bus_free: start,
             start,
             origin,
@@ -244,10 +247,13 @@ impl<'m> Device<'m> {
     }
 
     /// The next moment something must happen on time: a request's end on the bus or a
-    /// status packet's due time. Timers ([`Device::poll`]) may run late without changing
-    /// the outcome, as they act at their own time.
+    /// delivery of bytes to the host. Timers ([`Device::poll`]) may run late without
+    /// changing the outcome, as they act at their own time.
     pub fn next_due(&self) -> Option<Instant> {
-        let reply = self.outgoing.front().map(|o| o.due);
+        let reply = match &self.adapter {
+            Some(adapter) => adapter.next_delivery().map(|(at, _)| at),
+            None => self.outgoing.front().map(|o| o.due),
+        };
         match (self.next_request_end(), reply) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -284,10 +290,16 @@ impl<'m> Device<'m> {
         }
     }
 
-    /// The next status packet due by `now`, in order.
-    pub fn take_due(&mut self, now: Instant) -> Option<Outgoing> {
+    /// The next bytes for the host due by `now`, in order: a whole status packet when its
+    /// last byte has crossed the bus, or what the USB adapter passes on at once (call
+    /// [`Device::poll`] with `now` first, so that every request up to then has answered).
+    pub fn take_due(&mut self, now: Instant) -> Option<Delivery> {
+        if let Some(adapter) = &mut self.adapter {
+            return adapter.take_due(now);
+        }
         if self.outgoing.front()?.due <= now {
-            self.outgoing.pop_front()
+            let Outgoing { due, bytes } = self.outgoing.pop_front()?;
+            Some(Delivery { at: due, bytes })
         } else {
             None
         }
@@ -362,12 +374,10 @@ impl<'m> Device<'m> {
             if fate == ReplyFate::Delayed {
                 cursor = later(cursor, self.faults.delay);
             }
-            self.outgoing.push_back(Outgoing {
-                due: cursor,
-                id: reply.id,
-                fate,
-                bytes,
-            });
+            match &mut self.adapter {
+                Some(adapter) => adapter.receive(cursor, &bytes, self.baud),
+                None => self.outgoing.push_back(Outgoing { due: cursor, bytes }),
+            }
         }
         self.replies = replies;
         self.bus_free = cursor;

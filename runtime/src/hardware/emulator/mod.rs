@@ -3,10 +3,16 @@
 //!
 //! [`servos`] holds the control tables and what each instruction does; [`device`] is the
 //! bus without I/O (bytes in with their arrival time, status packets out with the time
-//! they are due, timers); [`serve`] is the I/O loop around it on a port. It paces replies
-//! by wire time at the configured baud (so a loop rate measured against the emulator means
-//! something), injects faults ([`Faults`]) and, for tests, records the bus
-//! ([`EmulatorLog`]).
+//! they are due, timers); [`adapter`] is the USB adapter between bus and host; [`serve`]
+//! is the I/O loop around them on a port. It paces replies by wire time at the configured
+//! baud (so a loop rate measured against the emulator means something), injects faults
+//! ([`Faults`]) and, for tests, records the bus ([`EmulatorLog`]).
+//!
+//! Realism, each off unless asked ([`Preset::Ideal`] is today's emulator): the physics of
+//! another robot file than the controller's ([`EmulatorSettings::plant`]), the adapter's
+//! latency timer ([`adapter`]), the servos' Return Delay Time, and sensor noise before the
+//! readings are rounded to register units ([`SensorNoise`]). [`Preset::Factory`] sets them
+//! as a U2D2 (or any FTDI adapter) and X-series servos come from the factory.
 //!
 //! Timing model: a request occupies the bus for its wire time (10 bits per byte, 8N1)
 //! from when it arrives or the bus is free, whichever is later; it is executed, and the
@@ -31,6 +37,7 @@
 //! (0 clears the error) is written. Every instruction packet on the bus with a good CRC
 //! counts, whatever its ID.
 
+pub mod adapter;
 pub mod device;
 pub mod servos;
 
@@ -42,6 +49,7 @@ use std::time::{Duration, Instant};
 use softcbf_description::robot::Robot;
 
 use crate::hardware::control_table::ServoState;
+use crate::hardware::description;
 use crate::hardware::mapping::{MappingError, TendonMap};
 use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::{Model, ModelError};
@@ -83,6 +91,37 @@ impl Default for Faults {
     }
 }
 
+/// Gaussian noise added to the readings before the servo rounds them to register units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorNoise {
+    /// Standard deviation of Present Position \[position units\].
+    pub position: f64,
+    /// Standard deviation of Present Velocity \[velocity units\].
+    pub velocity: f64,
+    /// Seed of the noise draws (a stream of its own: noise does not shift the faults).
+    pub seed: u64,
+}
+
+impl SensorNoise {
+    /// No noise.
+    pub const NONE: SensorNoise = SensorNoise {
+        position: 0.0,
+        velocity: 0.0,
+        seed: 1,
+    };
+
+    /// Whether any noise is added.
+    pub fn is_on(&self) -> bool {
+        self.position > 0.0 || self.velocity > 0.0
+    }
+}
+
+impl Default for SensorNoise {
+    fn default() -> Self {
+        SensorNoise::NONE
+    }
+}
+
 /// How the emulator runs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EmulatorSettings {
@@ -91,6 +130,16 @@ pub struct EmulatorSettings {
     /// Return Delay Time of every servo at the start (the X-series' default is 500 µs; 0
     /// is usual; at most 508 µs, in steps of 2 µs). A servo's own register rules after.
     pub return_delay: Duration,
+    /// Latency timer of the USB adapter the host reads through ([`adapter`]; FTDI's
+    /// factory value is 16 ms, 1 ms the usual tuned one); zero: no adapter, each status
+    /// packet reaches the host as its last byte crosses the bus.
+    pub latency_timer: Duration,
+    /// Noise on Present Position and Present Velocity.
+    pub noise: SensorNoise,
+    /// The "true" robot whose physics (its numbers, and the tendon geometry the servos
+    /// wind) the servos move, if not the one whose `[hardware]` table they are; its
+    /// structure must be the same. Its own `[hardware]` table, if any, is not read.
+    pub plant: Option<Robot>,
     /// Simulated time the robot rests with zero tension before serving, so it starts at
     /// its equilibrium under gravity \[s\].
     pub settle: f64,
@@ -99,14 +148,84 @@ pub struct EmulatorSettings {
 }
 
 impl EmulatorSettings {
-    /// Fault-free settings at `baud`, zero return delay, 3 s settling.
+    /// Fault-free settings at `baud`, zero return delay, no adapter, no noise, the robot's
+    /// own physics, 3 s settling: [`Preset::Ideal`].
     pub fn new(baud: u32) -> EmulatorSettings {
         EmulatorSettings {
             baud,
             return_delay: Duration::ZERO,
+            latency_timer: Duration::ZERO,
+            noise: SensorNoise::NONE,
+            plant: None,
             settle: 3.0,
             faults: Faults::default(),
         }
+    }
+}
+
+/// A starting point for the emulator's realism settings; options given one by one win.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Preset {
+    /// Replies as soon as the wire allows, exact readings: the emulator as it always was.
+    #[default]
+    Ideal,
+    /// A U2D2 (or another FTDI-based adapter) and X-series servos as they come from the
+    /// factory: latency timer 16 ms, Return Delay Time 500 µs (register 250), and noise of
+    /// one register unit on position and velocity.
+    Factory,
+}
+
+impl Preset {
+    /// Every preset, by its name on the command line.
+    pub const ALL: [(&'static str, Preset); 2] =
+        [("ideal", Preset::Ideal), ("factory", Preset::Factory)];
+
+    /// FTDI's factory latency timer.
+    pub const FACTORY_LATENCY_TIMER: Duration = Duration::from_millis(16);
+    /// The X-series' factory Return Delay Time (register 250 × 2 µs).
+    pub const FACTORY_RETURN_DELAY: Duration = Duration::from_micros(500);
+    /// Noise of [`Preset::Factory`] \[register units\]: an encoder count now and then.
+    pub const FACTORY_NOISE_UNITS: f64 = 1.0;
+
+    /// The preset named `text` (`realistic` is another name of `factory`).
+    pub fn parse(text: &str) -> Result<Preset, String> {
+        let text = text.trim();
+        if text.eq_ignore_ascii_case("realistic") {
+            return Ok(Preset::Factory);
+        }
+        Preset::ALL
+            .iter()
+            .find(|(name, _)| name.eq_ignore_ascii_case(text))
+            .map(|&(_, preset)| preset)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Preset::ALL.iter().map(|(name, _)| *name).collect();
+                format!("`{text}` is not a preset; use one of {}", names.join(", "))
+            })
+    }
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Ideal => "ideal",
+            Preset::Factory => "factory",
+        }
+    }
+
+    /// Sets the latency timer, the Return Delay Time and the noise (not its seed) of
+    /// `settings` to the preset's.
+    pub fn apply(self, settings: &mut EmulatorSettings) {
+        let (latency_timer, return_delay, noise) = match self {
+            Preset::Ideal => (Duration::ZERO, Duration::ZERO, 0.0),
+            Preset::Factory => (
+                Preset::FACTORY_LATENCY_TIMER,
+                Preset::FACTORY_RETURN_DELAY,
+                Preset::FACTORY_NOISE_UNITS,
+            ),
+        };
+        settings.latency_timer = latency_timer;
+        settings.return_delay = return_delay;
+        settings.noise.position = noise;
+        settings.noise.velocity = noise;
     }
 }
 
@@ -128,6 +247,19 @@ pub enum EmulatorError {
     /// A setting is out of range.
     #[error("emulator setting {0}")]
     Setting(String),
+    /// The plant's robot file has another structure than the servos' robot file.
+    #[error(
+        "{plant}: the plant must have the structure of {robot} (the same generated model), \
+         only other numbers; it has {difference}"
+    )]
+    PlantStructure {
+        /// The plant's robot file.
+        plant: String,
+        /// The servos' robot file.
+        robot: String,
+        /// The first difference found.
+        difference: String,
+    },
 }
 
 /// What happened to one status packet.
@@ -207,6 +339,33 @@ pub fn wait_until(deadline: Instant) {
     }
 }
 
+/// A port the emulator serves on: bytes both ways, and reads that give up after a time
+/// (so that the emulator reads requests while a reply waits for its time).
+pub trait Port: Read + Write {
+    /// Makes the next reads return after at most about `timeout` if no byte comes.
+    fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()>;
+}
+
+#[cfg(unix)]
+impl Port for serialport::TTYPort {
+    fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        serialport::SerialPort::set_timeout(self, timeout).map_err(io::Error::from)
+    }
+}
+
+/// Bytes in memory: reads never block.
+impl Port for io::Cursor<Vec<u8>> {
+    fn set_read_timeout(&mut self, _timeout: Duration) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// How soon a reply must be due for the emulator to wait for it rather than read.
+const READ_AHEAD: Duration = Duration::from_millis(2);
+
+/// Longest read while nothing is due.
+const IDLE_READ: Duration = Duration::from_millis(20);
+
 /// Longest sleep between two looks at the stop flag.
 const STOP_POLL: Duration = Duration::from_millis(10);
 
@@ -239,6 +398,22 @@ fn setting(message: String) -> EmulatorError {
 
 /// Refuses settings the emulator cannot use, naming the setting.
 fn check(settings: &EmulatorSettings) -> Result<(), EmulatorError> {
+    use crate::hardware::limits::{LATENCY_TIMER_MS, NOISE_UNITS};
+    let latency_ms = settings.latency_timer.as_secs_f64() * 1e3;
+    if latency_ms > LATENCY_TIMER_MS.max {
+        return Err(setting(format!(
+            "latency timer {latency_ms} ms: an FTDI adapter's is at most {} ms",
+            LATENCY_TIMER_MS.max
+        )));
+    }
+    for (name, units) in [
+        ("position noise", settings.noise.position),
+        ("velocity noise", settings.noise.velocity),
+    ] {
+        NOISE_UNITS
+            .check(units)
+            .map_err(|m| setting(format!("{name}: {m}")))?;
+    }
     let f = &settings.faults;
     for (name, p) in [
         ("drop", f.drop),
@@ -283,6 +458,97 @@ fn check_silent_servo(settings: &EmulatorSettings, ids: &[u8]) -> Result<(), Emu
     }
 }
 
+/// What differs first between two structures, in words (`None`: nothing).
+fn structure_difference(robot: &Robot, plant: &Robot) -> Option<String> {
+    let (a, b) = (robot.structure(), plant.structure());
+    let differs = |what: &str, ours: String, theirs: String| {
+        Some(format!(
+            "{what} {theirs} where the servos' robot has {ours}"
+        ))
+    };
+    if a.modules() != b.modules() {
+        differs("modules:", a.modules().to_string(), b.modules().to_string())
+    } else if a.corners != b.corners {
+        differs(
+            "corners per plate",
+            format!("{:?}", a.corners),
+            format!("{:?}", b.corners),
+        )
+    } else if a.tendons != b.tendons {
+        differs(
+            "tendons per module",
+            format!("{:?}", a.tendons),
+            format!("{:?}", b.tendons),
+        )
+    } else if a.routing != b.routing {
+        differs(
+            "routing",
+            format!("{:?}", a.routing).to_lowercase(),
+            format!("{:?}", b.routing).to_lowercase(),
+        )
+    } else if a.limits != b.limits {
+        let flags = |s: &softcbf_description::robot::Structure| {
+            s.limits
+                .iter()
+                .map(|f| match (f.elongation, f.bend) {
+                    (true, true) => "elongation and bend",
+                    (true, false) => "elongation",
+                    (false, true) => "bend",
+                    (false, false) => "none",
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        differs("limit barriers per module:", flags(&a), flags(&b))
+    } else if a.obstacles != b.obstacles {
+        differs(
+            "obstacles:",
+            format!("{}", a.obstacles.len()),
+            format!("{} (or other watched points)", b.obstacles.len()),
+        )
+    } else {
+        (a != b).then(|| "another structure".to_string())
+    }
+}
+
+/// Refuses a plant whose structure (and so generated model) is not `robot`'s, naming both
+/// files and the first difference.
+pub fn check_plant(robot: &Robot, plant: &Robot) -> Result<(), EmulatorError> {
+    match structure_difference(robot, plant) {
+        None => Ok(()),
+        Some(difference) => Err(EmulatorError::PlantStructure {
+            plant: plant.source.display().to_string(),
+            robot: robot.source.display().to_string(),
+            difference,
+        }),
+    }
+}
+
+/// The mapping and the model the emulated servos move: the servo facts of `robot`'s
+/// `[hardware]` table (IDs, units, pulleys, calibration, actuator gains) on the tendons and
+/// physics of [`EmulatorSettings::plant`], or of `robot` itself. A plant of another
+/// structure is refused, naming its file.
+pub fn physics(
+    robot: &Robot,
+    settings: &EmulatorSettings,
+) -> Result<(TendonMap, Model), EmulatorError> {
+    let hardware = description::load(robot)
+        .map_err(MappingError::from)?
+        .ok_or_else(|| MappingError::NoHardware {
+            file: robot.source.display().to_string(),
+        })?;
+    let body = match &settings.plant {
+        Some(plant) => {
+            check_plant(robot, plant)?;
+            plant
+        }
+        None => robot,
+    };
+    let map = TendonMap::with_hardware(body, hardware)?;
+    let model = Model::new(body.clone())?;
+    Ok((map, model))
+}
+
 /// How much of the device's record the shared log already has.
 #[derive(Default)]
 struct Synced {
@@ -320,7 +586,7 @@ fn sync(own: &EmulatorLog, shared: &Mutex<EmulatorLog>, done: &mut Synced) {
 /// checked at least every read timeout of the port and every 10 ms while a reply waits
 /// for its time. `ready` is called once the robot has settled and requests are answered;
 /// `log`, if given, is kept up to date as requests are executed.
-pub fn serve<P: Read + Write>(
+pub fn serve<P: Port>(
     robot: &Robot,
     settings: &EmulatorSettings,
     port: &mut P,
@@ -329,9 +595,8 @@ pub fn serve<P: Read + Write>(
     log: Option<&Mutex<EmulatorLog>>,
 ) -> Result<EmulatorLog, EmulatorError> {
     check(settings)?;
-    let map = TendonMap::new(robot)?;
+    let (map, model) = physics(robot, settings)?;
     check_silent_servo(settings, &map.hardware().servo_ids())?;
-    let model = Model::new(robot.clone())?;
     let mut plant = Plant::new(&model, Tolerances::default())?;
     plant.advance(settings.settle)?;
     let mut device = Device::new(map, plant, settings, Instant::now())?;
@@ -354,16 +619,23 @@ pub fn serve<P: Read + Write>(
                 seen = changed;
             }
         }
-        while let Some(out) = device.take_due(now) {
-            port.write_all(&out.bytes)?;
+        while let Some(delivery) = device.take_due(now) {
+            port.write_all(&delivery.bytes)?;
             port.flush()?;
         }
-        // A request to finish or a reply to send keeps the loop off the port (a read
-        // could block past it); otherwise wait for bytes.
-        if let Some(due) = device.next_due() {
+        // A request to finish or bytes to send soon keep the loop off the port (a read
+        // could block past them); otherwise wait for bytes, no longer than until then.
+        let due = device.next_due();
+        let left = due.map(|due| due.saturating_duration_since(Instant::now()));
+        if let (Some(due), Some(left)) = (due, left)
+            && left <= READ_AHEAD
+        {
             wait_until_or_stop(due, stop);
             continue;
         }
+        port.set_read_timeout(
+            left.map_or(IDLE_READ, |left| (left - READ_AHEAD / 2).min(IDLE_READ)),
+        )?;
         match port.read(&mut buf) {
             Ok(0) => std::thread::sleep(Duration::from_millis(1)),
             Ok(n) => device.receive(&buf[..n], Instant::now())?,

@@ -4,7 +4,8 @@
 //! Tensions come from the goal currents through the actuator gain (a negative current
 //! unwinds the pulley: the cable goes slack, zero tension); a servo with torque off, not in
 //! current control mode, or stopped by its Bus Watchdog pulls with nothing. Register values
-//! are sampled from the plant at the time an instruction is executed.
+//! are sampled from the plant at the time an instruction is executed, with the sensor
+//! noise asked for ([`SensorNoise`]) added before they are rounded to register units.
 //!
 //! Instructions (ROBOTIS e-Manual, "Protocol 2.0" and the X-series control table):
 //!
@@ -43,6 +44,10 @@
 
 use std::time::Duration;
 
+use rand::rngs::Xoshiro256PlusPlus;
+use rand::{RngExt, SeedableRng};
+
+use super::SensorNoise;
 use crate::hardware::control_table::{self as table, Access, Area, Item, ServoState, Values};
 use crate::hardware::mapping::TendonMap;
 use crate::integrator::IntegratorError;
@@ -124,6 +129,19 @@ pub struct Servos<'m> {
     angles: Vec<f64>,
     rates: Vec<f64>,
     tensions: Vec<f64>,
+    noise: SensorNoise,
+    noise_draws: Xoshiro256PlusPlus,
+}
+
+/// Offset between the fault draws' seed and the noise draws' (any odd constant): the same
+/// `--seed` gives the two unrelated streams.
+const NOISE_STREAM: u64 = 0x9E37_79B9_7F4A_7C15;
+
+/// A draw of the standard normal distribution (Box–Muller, one of the pair).
+fn standard_normal(draws: &mut Xoshiro256PlusPlus) -> f64 {
+    let [u, v]: [f64; 2] = draws.random();
+    // 1 − u lies in (0, 1]: its logarithm is finite.
+    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
 }
 
 fn range(addr: u16, size: u16) -> std::ops::Range<usize> {
@@ -205,7 +223,15 @@ impl<'m> Servos<'m> {
             angles: vec![0.0; n],
             rates: vec![0.0; n],
             tensions: vec![0.0; n],
+            noise: SensorNoise::NONE,
+            noise_draws: Xoshiro256PlusPlus::seed_from_u64(NOISE_STREAM),
         }
+    }
+
+    /// Adds `noise` to the readings from now on (its seed restarts the draws).
+    pub fn set_noise(&mut self, noise: SensorNoise) {
+        self.noise = noise;
+        self.noise_draws = Xoshiro256PlusPlus::seed_from_u64(noise.seed ^ NOISE_STREAM);
     }
 
     /// The servo IDs the robot file gives, in bus order (an ID written later is in the
@@ -288,6 +314,19 @@ impl<'m> Servos<'m> {
         self.map.angles_from_q(self.plant.q(), &mut self.angles);
         self.map.rates_from_qd(self.plant.qd(), &mut self.rates);
         let tick = ((self.plant.time() * 1000.0).max(0.0) as u64 % 32768) as i64;
+        if self.noise.is_on() {
+            // One register unit in radians and in rad/s; both draws every time, so one
+            // deviation's setting does not shift the other's sequence.
+            let (position_unit, velocity_unit) = (
+                self.map.angle_from_position(1),
+                self.map.rate_from_velocity(1),
+            );
+            for s in 0..self.ids.len() {
+                let [position, velocity] = [(); 2].map(|_| standard_normal(&mut self.noise_draws));
+                self.angles[s] += self.noise.position * position_unit * position;
+                self.rates[s] += self.noise.velocity * velocity_unit * velocity;
+            }
+        }
         for s in 0..self.ids.len() {
             let current = if self.pulls(s) {
                 self.goal_current(s)
