@@ -39,6 +39,11 @@ struct SimulateArgs {
     /// Robot file (default: the scenario's robot, else the embedded paper robot).
     #[arg(long)]
     robot: Option<PathBuf>,
+    /// Robot file whose physics the plant integrates, while the controller uses the robot
+    /// above (same structure, other numbers; default: the scenario's `plant`, else the
+    /// controller's robot).
+    #[arg(long, value_name = "FILE")]
+    plant: Option<PathBuf>,
     /// Set point `Δx,Δy,δL,…` (m), replacing the scenario's reference.
     #[arg(long, allow_hyphen_values = true)]
     set_point: Option<String>,
@@ -48,6 +53,10 @@ struct SimulateArgs {
     /// Control period (s): the state is sampled and τ held for this long.
     #[arg(long, allow_negative_numbers = true)]
     control_period: Option<f64>,
+    /// Also record the plant's state between ticks, every S seconds after each tick (at
+    /// most the control period; default: one row per tick).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    record_period: Option<f64>,
     /// Both HOCBF class-K gains p1 = p2 (1/s).
     #[arg(long, allow_negative_numbers = true)]
     p: Option<f64>,
@@ -172,6 +181,11 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         args.control_period,
         &limits::CONTROL_PERIOD_S,
     )?;
+    let record_period = check(
+        "--record-period",
+        args.record_period,
+        &limits::RECORD_PERIOD_S,
+    )?;
     let file = match &args.scenario {
         Some(path) => ScenarioFile::load(path).map_err(|e| e.to_string())?,
         None => ScenarioFile::paper_sim(),
@@ -197,6 +211,8 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         filter: args.no_filter.then_some(false),
         safety: args.safety,
         compare: args.compare.then_some(true),
+        record_period,
+        plant: args.plant,
     };
     let scenario = file
         .resolve_with(&model, &overrides)

@@ -90,12 +90,19 @@ pub fn write_outputs(
 }
 
 /// The one line printed at the end of a run; for a robot with barriers of more than one
-/// kind group it names the lowest of each ([`crate::sim::LowestByKind::line`]).
+/// kind group it names the lowest of each ([`crate::sim::LowestByKind::line`]). A run
+/// recorded between ticks says so after its lowest barrier: `(dense, every 1 ms)`.
 pub fn one_line(summary: &RunSummary) -> String {
     let counts = &summary.counts;
+    let dense = match summary.record_period {
+        Some(period) if summary.dense => {
+            format!(" (dense, every {})", crate::settings::period_text(period))
+        }
+        _ => String::new(),
+    };
     let mut line = format!(
-        "{} on {} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier \
-         {:.3e} {} ({}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
+        "{} on {} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier\
+         {dense} {:.3e} {} ({}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
         summary.scenario,
         summary.robot,
         summary.controller,

@@ -1,5 +1,6 @@
-//! Trajectory record of a run: one row per control tick (`t`, `q`, `q̇`, `τ`, `τ_nom`, `b`
-//! and named extra columns), preallocated so that recording allocates nothing per tick.
+//! Trajectory record of a run: one row per control tick, or per recorded instant of a dense
+//! simulation (`t`, `q`, `q̇`, `τ`, `τ_nom`, `b` and named extra columns), preallocated so
+//! that recording allocates nothing per row.
 //!
 //! The column layout ([`Columns`]) is fixed at construction: the coordinates' names, the
 //! barriers' labels and units (from the model's barrier table) and the extra columns. Rows
@@ -10,7 +11,7 @@
 //!
 //! # Column names
 //!
-//! One header line, then one line per tick; every name is unique, ASCII for the standard
+//! One header line, then one line per row; every name is unique, ASCII for the standard
 //! columns, without commas, quotes or line breaks, so a spreadsheet or
 //! `pandas.read_csv("trajectory.csv")` reads the file as it is and `df["dx1 [m]"]` can be
 //! typed. Each name carries its unit in brackets:
@@ -488,7 +489,8 @@ impl Columns {
     }
 }
 
-/// One control tick, borrowed from the caller (SI units).
+/// One row: a control tick, or an instant between ticks of a dense simulation, borrowed
+/// from the caller (SI units).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Row<'a> {
     /// Time `t` \[s\].

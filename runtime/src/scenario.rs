@@ -1,5 +1,6 @@
 //! Scenario files (`scenarios/*.toml`): what `softcbf simulate` runs — robot, initial
-//! state, reference, gains, control period, duration, filter, integrator tolerances.
+//! state, reference, gains, control period, duration, filter, integrator tolerances, how
+//! densely the trajectory is recorded and, optionally, a separate plant robot.
 //!
 //! Parsing follows the robot files: serde reads values with their spans, then every value is
 //! checked, and sizes are checked against the robot once it is known
@@ -47,6 +48,14 @@ pub struct Scenario {
     pub compare: bool,
     /// Integrator tolerances between ticks.
     pub tolerances: Tolerances,
+    /// Time between recorded rows \[s\] (`record_period`; `None`: one row per tick). Rows
+    /// fall at every multiple of it after a tick and before the next ([`between_ticks`]),
+    /// and at every tick.
+    pub record_period: Option<f64>,
+    /// The robot whose physics the plant integrates (`plant`; `None`: the controller's
+    /// robot). Its structure is the controller's robot's, so both use one generated model;
+    /// its numbers may differ (model mismatch).
+    pub plant: Option<Robot>,
     /// The scenario file (`<embedded …>` for the built-in one).
     pub file: String,
     /// Where the layered settings came from.
@@ -71,6 +80,10 @@ pub struct Sources {
     pub safety: Source,
     /// Of the comparison switch.
     pub compare: Source,
+    /// Of the record period.
+    pub record_period: Source,
+    /// Of the plant robot.
+    pub plant: Source,
 }
 
 /// What the command line changes in a scenario; each value is checked by the caller
@@ -91,6 +104,10 @@ pub struct Overrides {
     pub safety: Option<SafetyMode>,
     /// `Some(true)` for `--compare`.
     pub compare: Option<bool>,
+    /// `--record-period` \[s\].
+    pub record_period: Option<f64>,
+    /// `--plant`: the plant robot's file (as given, relative to the working directory).
+    pub plant: Option<PathBuf>,
 }
 
 /// Why a scenario cannot run: a problem in its file, or in a command-line option.
@@ -127,6 +144,8 @@ struct RawScenario {
     /// The old switch: `true` is `safety = "hold-correction"`, `false` the paper's rows.
     hold_correction: Option<Spanned<bool>>,
     compare: Option<bool>,
+    record_period: Option<Spanned<f64>>,
+    plant: Option<Spanned<String>>,
     #[serde(default)]
     initial: RawInitial,
     reference: Option<Spanned<RawReference>>,
@@ -183,6 +202,27 @@ pub const DEFAULT_DURATION: f64 = 10.0;
 pub const PAPER_GAINS: (f64, f64) = (5.0, 1.0);
 /// Most ticks a scenario may ask for (a guard against typos such as `duration = 1e9`).
 pub const MAX_TICKS: f64 = 1e8;
+/// Most rows a run may record, ticks and rows between them (the record is held in memory).
+pub const MAX_RECORDED_ROWS: f64 = 1e8;
+
+/// How many rows are recorded strictly between two ticks `control_period` apart when rows
+/// are recorded every `record_period` (both \[s\], positive): one at every whole multiple
+/// of `record_period` after a tick that falls before the next tick. A multiple within a
+/// billionth of the period of the next tick is that tick (so that `0.03 / 0.001`, which
+/// rounds to 29.999999999999996, records 29 rows between ticks, not 30 with the last one
+/// on the tick). `record_period ≥ control_period` records none.
+pub fn between_ticks(control_period: f64, record_period: f64) -> usize {
+    let ratio = control_period / record_period;
+    if !ratio.is_finite() || ratio <= 1.0 {
+        return 0;
+    }
+    let nearest = ratio.round();
+    if (ratio - nearest).abs() <= 1e-9 * ratio {
+        nearest as usize - 1
+    } else {
+        ratio.floor() as usize
+    }
+}
 
 impl ScenarioFile {
     /// Reads a scenario file.
@@ -219,13 +259,23 @@ impl ScenarioFile {
     /// The robot file the scenario names, relative paths taken from the scenario's folder
     /// (`None`: the embedded paper robot).
     pub fn robot_path(&self) -> Option<PathBuf> {
-        let robot = self.raw.robot.as_ref()?;
-        let given = Path::new(robot.get_ref());
-        Some(if given.is_absolute() {
+        Some(self.beside(self.raw.robot.as_ref()?.get_ref()))
+    }
+
+    /// The plant robot file the scenario names (`plant`), relative paths taken from the
+    /// scenario's folder (`None`: the plant is the controller's robot).
+    pub fn plant_path(&self) -> Option<PathBuf> {
+        Some(self.beside(self.raw.plant.as_ref()?.get_ref()))
+    }
+
+    /// A path the file gives, taken from the scenario's folder when relative.
+    fn beside(&self, given: &str) -> PathBuf {
+        let given = Path::new(given);
+        if given.is_absolute() {
             given.to_path_buf()
         } else {
             self.path.parent().unwrap_or(Path::new(".")).join(given)
-        })
+        }
     }
 
     /// Reads the robot file the scenario names (`None`: it names none, the caller uses the
@@ -314,6 +364,23 @@ impl ScenarioFile {
         );
         self.check_ticks(&c, &duration, &control_period)?;
         let period = control_period.value;
+        let record_period = first(
+            [
+                (overrides.record_period.map(Some), Source::CommandLine),
+                (
+                    number(
+                        &raw.record_period,
+                        "record_period",
+                        &limits::RECORD_PERIOD_S,
+                    )?
+                    .map(Some),
+                    Source::Scenario,
+                ),
+            ],
+            None,
+        );
+        self.check_record_period(&c, &record_period, &control_period, &duration)?;
+        let plant = self.plant(&c, model, overrides)?;
 
         let robot = &model.robot;
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
@@ -421,6 +488,8 @@ impl ScenarioFile {
             duration: duration.value,
             compare: compare.value,
             tolerances,
+            record_period: record_period.value,
+            plant: plant.value,
             sources: Sources {
                 gains,
                 control_period: control_period.source,
@@ -429,8 +498,107 @@ impl ScenarioFile {
                 filter: filter.source,
                 safety: safety.source,
                 compare: compare.source,
+                record_period: record_period.source,
+                plant: plant.source,
             },
         })
+    }
+
+    /// Checks that a record period (checked against its range already) is at most the
+    /// control period and that the rows it records number at most [`MAX_RECORDED_ROWS`];
+    /// the error names the option or the field that gave it.
+    fn check_record_period(
+        &self,
+        c: &Checker<'_>,
+        record_period: &Sourced<Option<f64>>,
+        period: &Sourced<f64>,
+        duration: &Sourced<f64>,
+    ) -> Result<(), ScenarioError> {
+        let Some(record_s) = record_period.value else {
+            return Ok(());
+        };
+        let period_s = period.value;
+        let from = if period.source == Source::CommandLine {
+            " (--control-period)"
+        } else {
+            ""
+        };
+        let ticks = (duration.value / period_s).round();
+        let rows = ticks * (between_ticks(period_s, record_s) as f64 + 1.0) + 1.0;
+        let problem = if record_s > period_s {
+            format!(
+                "{} s is longer than the control period ({} s{from}): rows are recorded at \
+                 every tick already; give at most the control period",
+                short(record_s),
+                short(period_s)
+            )
+        } else if rows > MAX_RECORDED_ROWS {
+            format!(
+                "{} s over {} s of simulated time records {rows:.1e} rows, more than \
+                 {MAX_RECORDED_ROWS:.0e}; record less densely or simulate less time",
+                short(record_s),
+                short(duration.value)
+            )
+        } else {
+            return Ok(());
+        };
+        if record_period.source == Source::CommandLine {
+            return Err(ScenarioError::Option(format!("--record-period: {problem}")));
+        }
+        let span = self.raw.record_period.as_ref().map_or(0..0, Spanned::span);
+        Err(c.invalid(&span, "record_period", problem).into())
+    }
+
+    /// The plant robot the command line (`--plant`) or the file (`plant`) names, read and
+    /// checked to have the structure of `model`'s robot; `None` when neither names one.
+    /// Problems are reported at the option or at the file's field, naming both robot files
+    /// and what differs.
+    fn plant(
+        &self,
+        c: &Checker<'_>,
+        model: &Model,
+        overrides: &Overrides,
+    ) -> Result<Sourced<Option<Robot>>, ScenarioError> {
+        let (path, source) = match (&overrides.plant, self.plant_path()) {
+            (Some(path), _) => (path.clone(), Source::CommandLine),
+            (None, Some(path)) => (path, Source::Scenario),
+            (None, None) => return Ok(Sourced::new(None, Source::BuiltIn)),
+        };
+        let span = self.raw.plant.as_ref().map_or(0..0, Spanned::span);
+        let refuse = |message: String| -> ScenarioError {
+            match source {
+                Source::CommandLine => ScenarioError::Option(format!("--plant: {message}")),
+                _ => c.invalid(&span, "plant", message).into(),
+            }
+        };
+        let resolved = std::path::absolute(&path).unwrap_or_else(|_| path.clone());
+        let robot = match crate::cli::load_robot(Some(&path)) {
+            Ok(robot) => robot,
+            Err(FileError::Io { source: error, .. }) => {
+                let taken = match source {
+                    Source::CommandLine => String::new(),
+                    _ => format!(
+                        " (`{}`, taken from this scenario's folder)",
+                        self.raw.plant.as_ref().map_or("", |p| p.get_ref())
+                    ),
+                };
+                return Err(refuse(format!(
+                    "cannot read the plant robot file {}{taken}: {error}",
+                    resolved.display()
+                )));
+            }
+            Err(error) => return Err(error.into()),
+        };
+        if let Some(difference) = structure_difference(&model.robot, &robot) {
+            return Err(refuse(format!(
+                "the plant robot {} differs in structure from the controller's robot {}: \
+                 {difference}; a plant may differ only in its numbers (stiffness, damping, \
+                 masses, lengths), so that both use one generated model",
+                resolved.display(),
+                crate::settings::file_name(&model.robot.source)
+            )));
+        }
+        Ok(Sourced::new(Some(robot), source))
     }
 
     /// The file's `safety` (or its old spelling `hold_correction = true | false`), if given.
@@ -579,6 +747,74 @@ impl ScenarioFile {
             )),
         }
     }
+}
+
+/// The first way in which `plant`'s structure differs from `controller`'s (the robot the
+/// controller uses), in words; `None` if they have one structure.
+pub fn structure_difference(controller: &Robot, plant: &Robot) -> Option<String> {
+    let (ours, theirs) = (controller.structure(), plant.structure());
+    if ours == theirs {
+        return None;
+    }
+    let (n, m) = (ours.corners.len(), theirs.corners.len());
+    if n != m {
+        return Some(format!("it has {m} modules, the controller's robot {n}"));
+    }
+    let per_module = |what: &str, a: &[usize], b: &[usize]| {
+        a.iter()
+            .zip(b)
+            .enumerate()
+            .find(|(_, (x, y))| x != y)
+            .map(|(k, (x, y))| format!("module {}: {y} {what}, the controller's robot {x}", k + 1))
+    };
+    if let Some(text) = per_module("plate corners", &ours.corners, &theirs.corners) {
+        return Some(text);
+    }
+    if let Some(text) = per_module("tendons", &ours.tendons, &theirs.tendons) {
+        return Some(text);
+    }
+    if ours.routing != theirs.routing {
+        let name = |routing| format!("{routing:?}").to_lowercase();
+        return Some(format!(
+            "routing `{}`, the controller's robot `{}`",
+            name(theirs.routing),
+            name(ours.routing)
+        ));
+    }
+    let limit_words = |f: &softcbf_description::barriers::LimitFlags| match (f.elongation, f.bend) {
+        (false, false) => "no limits",
+        (true, false) => "an elongation limit",
+        (false, true) => "a bend limit",
+        (true, true) => "elongation and bend limits",
+    };
+    if let Some((k, (a, b))) = ours
+        .limits
+        .iter()
+        .zip(&theirs.limits)
+        .enumerate()
+        .find(|(_, (a, b))| a != b)
+    {
+        return Some(format!(
+            "module {}: {} ([limits]), the controller's robot {}",
+            k + 1,
+            limit_words(b),
+            limit_words(a)
+        ));
+    }
+    let (a, b) = (ours.obstacles.len(), theirs.obstacles.len());
+    if a != b {
+        return Some(format!("{b} obstacles, the controller's robot {a}"));
+    }
+    let k = ours
+        .obstacles
+        .iter()
+        .zip(&theirs.obstacles)
+        .position(|(a, b)| a != b)
+        .unwrap_or_default();
+    Some(format!(
+        "obstacle {}: another kind or other watched points than the controller's robot's",
+        k + 1
+    ))
 }
 
 /// Relative slack on the spacing of waypoints, so that times written in decimals one
@@ -825,6 +1061,52 @@ mod tests {
             &format!("{REFERENCE}[gains]\nkd = [[1, \"a\"]]\n"),
             "x.toml:4:11: field `gains.kd`, row 1 entry 2: invalid type: string \"a\", \
              expected a number",
+        );
+    }
+
+    #[test]
+    fn the_record_period_is_in_range_and_at_most_the_control_period() {
+        refused(
+            &format!("record_period = 0\n{REFERENCE}"),
+            "x.toml:1: field `record_period`: must be ≥ 1e-6 and ≤ 1 s, got 0",
+        );
+        refused(
+            &format!("control_period = 0.01\nrecord_period = 0.02\n{REFERENCE}"),
+            "x.toml:2: field `record_period`: 0.02 s is longer than the control period \
+             (0.01 s): rows are recorded at every tick already",
+        );
+        // 1e4 s at 1 kHz, 999 rows between ticks: 1e10 rows.
+        refused(
+            &format!("duration = 1e4\nrecord_period = 1e-6\n{REFERENCE}"),
+            "x.toml:2: field `record_period`: 1e-6 s over 10000 s of simulated time \
+             records 1.0e10 rows, more than 1e8",
+        );
+        assert_eq!(resolve(REFERENCE).unwrap().record_period, None);
+        let scenario = resolve(&format!("record_period = 5e-4\n{REFERENCE}")).unwrap();
+        assert_eq!(scenario.record_period, Some(5e-4));
+        assert_eq!(scenario.sources.record_period, Source::Scenario);
+        // The command line wins, and is named in its own errors.
+        let file = ScenarioFile::parse(
+            &format!("record_period = 5e-4\n{REFERENCE}"),
+            Path::new("scenarios/x.toml"),
+        )
+        .unwrap();
+        let overrides = Overrides {
+            record_period: Some(2e-4),
+            ..Overrides::default()
+        };
+        let scenario = file.resolve_with(&model(), &overrides).unwrap();
+        assert_eq!(scenario.record_period, Some(2e-4));
+        assert_eq!(scenario.sources.record_period, Source::CommandLine);
+        let overrides = Overrides {
+            record_period: Some(2e-3),
+            ..Overrides::default()
+        };
+        let error = file.resolve_with(&model(), &overrides).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "--record-period: 0.002 s is longer than the control period (0.001 s): rows are \
+             recorded at every tick already; give at most the control period"
         );
     }
 

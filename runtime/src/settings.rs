@@ -2,7 +2,8 @@
 //! line, then the scenario file, then the robot file, then the built-in default.
 //!
 //! One precedence for every layered setting (`K_P`, `K_D`, `p1`, `p2`, and for `simulate`
-//! the control period, duration, set point, filter and hold correction):
+//! the control period, duration, set point, filter, safety mode, record period and plant
+//! robot):
 //!
 //! | source | example |
 //! |---|---|
@@ -269,6 +270,12 @@ pub struct SettingsReport {
     pub reference: Sourced<String>,
     /// Integrator tolerances (simulation only).
     pub integrator: Option<IntegratorReport>,
+    /// Time between recorded rows \[s\] of a simulation that records between ticks
+    /// (`None`: one row per tick, and for a hardware run).
+    pub record_period: Option<Sourced<f64>>,
+    /// The robot whose physics a simulation integrates, when it is not the controller's
+    /// (`None`: the plant is the robot above).
+    pub plant: Option<Sourced<Described>>,
 }
 
 /// How a settings report names a file: its absolute path, so that a later `softcbf plot`
@@ -335,6 +342,19 @@ impl SettingsReport {
             "reference {} ({})",
             self.reference.value, self.reference.source
         ));
+        if let Some(period) = &self.record_period {
+            parts.push(format!(
+                "recorded every {} ({})",
+                period_text(period.value),
+                period.source
+            ));
+        }
+        if let Some(plant) = &self.plant {
+            parts.push(format!(
+                "plant {} ({}) ({})",
+                plant.value.name, plant.value.file, plant.source
+            ));
+        }
         if let Some(i) = &self.integrator {
             parts.push(format!(
                 "rtol {}, atol {}",
@@ -344,6 +364,18 @@ impl SettingsReport {
         }
         format!("settings: {}", parts.join("; "))
     }
+}
+
+/// A period \[s\] in milliseconds or, below one, microseconds, rounded to nine
+/// significant digits: `1 ms`, `0.5 ms`… `250 µs`.
+pub fn period_text(seconds: f64) -> String {
+    let (value, unit) = if seconds >= 1e-3 {
+        (seconds * 1e3, "ms")
+    } else {
+        (seconds * 1e6, "µs")
+    };
+    let rounded: f64 = format!("{value:.9e}").parse().unwrap_or(value);
+    format!("{} {unit}", limits::short(rounded))
 }
 
 /// A short form of a vector for the settings line: `[0.08, 0, -0.05, …]`.
@@ -423,6 +455,15 @@ mod tests {
         assert!(error.contains("either --p or --p1/--p2"), "{error}");
         let split = GainOptions::checked(None, None, None, Some(2.0), None).unwrap();
         assert_eq!((split.p1, split.p2), (Some(2.0), None));
+    }
+
+    #[test]
+    fn periods_are_written_in_milliseconds_or_microseconds() {
+        assert_eq!(period_text(1e-3), "1 ms");
+        assert_eq!(period_text(0.0303), "30.3 ms");
+        assert_eq!(period_text(3e-4), "300 µs");
+        assert_eq!(period_text(1e-6), "1 µs");
+        assert_eq!(period_text(1.0), "1000 ms");
     }
 
     #[test]

@@ -2,7 +2,12 @@
 //! its command is held (zero-order hold) while the plant is integrated to the next tick.
 //!
 //! One run fills a [`Record`] (one row per tick, the last at `t = duration`, whose command is
-//! computed and logged but not applied) and a [`RunSummary`]. A failure of the plant
+//! computed and logged but not applied) and a [`RunSummary`]. With a record period
+//! ([`Scenario::record_period`]) the plant is integrated from one recorded instant to the
+//! next and rows between ticks hold the plant's state, the barriers the controller's model
+//! gives there, and the held `τ` and the tick's `τ_nom`; the lowest barrier is taken over
+//! every row. The plant may integrate another robot of the same structure
+//! ([`Scenario::plant`]) than the one the controller uses. A failure of the plant
 //! integration ends the run early; the record and summary keep what happened up to it and
 //! [`RunSummary::stopped`] says why. Nothing allocates inside the loop.
 
@@ -15,12 +20,12 @@ use softcbf_generated::{BarrierInfo, BarrierKind, KindGroup};
 
 use crate::control::{self, Controller, ControllerError, TickStatus};
 use crate::integrator::IntegratorError;
-use crate::model::Model;
+use crate::model::{Model, ModelError};
 use crate::plant::Plant;
 use crate::record::{Columns, Record, RecordError, Row};
 use crate::reference::ReferenceSignal;
 use crate::reference::ReferenceSpec;
-use crate::scenario::Scenario;
+use crate::scenario::{Scenario, between_ticks, structure_difference};
 use crate::settings::{
     Described, IntegratorReport, SettingsReport, Sourced, file_name, software, vector_text,
 };
@@ -40,12 +45,24 @@ pub enum SimulationError {
     /// The scenario's vectors do not fit the model.
     #[error("scenario has vectors of length {got}, the robot has {expected} coordinates")]
     Size { expected: usize, got: usize },
+    /// The plant robot has no generated model.
+    #[error("plant: {0}")]
+    PlantModel(#[from] ModelError),
+    /// The plant robot's structure is not the controller's robot's.
+    #[error("plant {file}: {difference}")]
+    PlantStructure {
+        /// The plant robot's file.
+        file: String,
+        /// What differs.
+        difference: String,
+    },
 }
 
-/// The lowest barrier value seen at a tick.
+/// The lowest barrier value seen in a recorded row (at a tick, or between ticks in a dense
+/// record).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BarrierMinimum {
-    /// `min_k b_k(t)` over the ticks, in [`BarrierMinimum::unit`].
+    /// `min_k b_k(t)` over the recorded rows, in [`BarrierMinimum::unit`].
     pub value: f64,
     /// Index of that barrier in the model's barrier table (0-based).
     pub barrier: usize,
@@ -274,9 +291,14 @@ pub struct RunSummary {
     pub duration: f64,
     /// Control period \[s\].
     pub control_period: f64,
-    /// Lowest barrier value at a tick, and which barrier.
+    /// Time between recorded rows \[s\] (`None`: one row per tick).
+    pub record_period: Option<f64>,
+    /// Whether rows were recorded between ticks (a record period shorter than the control
+    /// period): then the lowest barriers below are over those rows too.
+    pub dense: bool,
+    /// Lowest barrier value in a recorded row, and which barrier.
     pub min_barrier: BarrierMinimum,
-    /// Lowest barrier value at a tick of each kind group the model has.
+    /// Lowest barrier value in a recorded row of each kind group the model has.
     pub lowest_by_kind: LowestByKind,
     /// Final `q` \[m\].
     pub final_q: Vec<f64>,
@@ -351,12 +373,41 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
             h_initial: tolerances.h_initial,
             max_steps: tolerances.max_steps,
         }),
+        record_period: scenario
+            .record_period
+            .map(|period| Sourced::new(period, sources.record_period)),
+        plant: scenario.plant.as_ref().map(|plant| {
+            Sourced::new(
+                Described {
+                    name: plant.name.clone(),
+                    file: file_name(&plant.source),
+                },
+                sources.plant,
+            )
+        }),
     }
+}
+
+/// Keeps barrier `values` (one per row of `table`) at time `t` in `minimum` and `by_kind`
+/// if they are lower.
+fn observe(
+    minimum: &mut BarrierMinimum,
+    by_kind: &mut LowestByKind,
+    table: &[BarrierInfo],
+    values: &[f64],
+    t: f64,
+) {
+    for (j, &b) in values.iter().enumerate() {
+        if b < minimum.value {
+            *minimum = BarrierMinimum::of(table, j, b, t);
+        }
+    }
+    by_kind.observe_all(table, values, t);
 }
 
 /// A finished run: its trajectory and summary.
 pub struct Run {
-    /// One row per tick.
+    /// One row per tick, and with a record period the rows between ticks.
     pub record: Record,
     /// Figures of the run.
     pub summary: RunSummary,
@@ -379,10 +430,22 @@ pub fn simulate(
             });
         }
     }
+    let plant_model = match &scenario.plant {
+        Some(robot) => {
+            if let Some(difference) = structure_difference(&model.robot, robot) {
+                return Err(SimulationError::PlantStructure {
+                    file: file_name(&robot.source),
+                    difference,
+                });
+            }
+            Some(Model::new(robot.clone())?)
+        }
+        None => None,
+    };
     let mut settings = scenario.controller.clone();
     settings.filter = filter;
     let mut controller = Controller::new(model, settings)?;
-    let mut plant = Plant::new(model, scenario.tolerances)?;
+    let mut plant = Plant::new(plant_model.as_ref().unwrap_or(model), scenario.tolerances)?;
     plant.reset(&scenario.initial_q, &scenario.initial_qd, 0.0);
     let mut reference = ReferenceSignal::new(scenario.reference.clone());
     if reference.spec().dimension() != Some(nq) {
@@ -391,9 +454,16 @@ pub fn simulate(
             got: reference.spec().dimension().unwrap_or(0),
         });
     }
-    let ticks = (scenario.duration / scenario.control_period).round() as usize;
-    let mut record = Record::for_columns(Columns::for_model(model, &[])?, ticks + 1);
+    let period = scenario.control_period;
+    let ticks = (scenario.duration / period).round() as usize;
+    let record_period = scenario.record_period;
+    // Rows recorded strictly between two ticks, at these offsets from the earlier tick.
+    let between = record_period.map_or(0, |r| between_ticks(period, r));
+    let offset = |j: usize| j as f64 * record_period.unwrap_or(period);
+    let rows = ticks.saturating_mul(between + 1).saturating_add(1);
+    let mut record = Record::for_columns(Columns::for_model(model, &[])?, rows);
     let table = model.generated.barrier_table();
+    let mut between_barriers = vec![0.0; nb];
 
     let mut counts = TickCounts::default();
     let mut relaxed_ticks = vec![0usize; nb];
@@ -406,8 +476,8 @@ pub fn simulate(
     let report_every = (ticks / 100).max(1);
     let start = Instant::now();
     let mut t = 0.0;
-    for k in 0..=ticks {
-        t = k as f64 * scenario.control_period;
+    'ticks: for k in 0..=ticks {
+        t = k as f64 * period;
         let tick_start = Instant::now();
         let status = control::tick(
             model,
@@ -448,12 +518,13 @@ pub fn simulate(
             }
             TickStatus::InvalidState(_) => counts.invalid_state += 1,
         }
-        for (j, &b) in controller.barriers().iter().enumerate() {
-            if b < minimum.value {
-                minimum = BarrierMinimum::of(table, j, b, t);
-            }
-        }
-        lowest_by_kind.observe_all(table, controller.barriers(), t);
+        observe(
+            &mut minimum,
+            &mut lowest_by_kind,
+            table,
+            controller.barriers(),
+            t,
+        );
         let applied = if k < ticks { controller.tau() } else { &[][..] };
         max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
         record.push_row(&Row {
@@ -469,16 +540,50 @@ pub fn simulate(
             break;
         }
         plant.tau_mut().copy_from_slice(controller.tau());
-        let step_start = Instant::now();
-        let advanced = plant.advance(scenario.control_period);
-        integration_time += step_start.elapsed();
-        if let Err(error) = advanced {
-            let cause = plant
-                .last_dynamics_error()
-                .map_or(String::new(), |e| format!(" ({e})"));
-            stopped = Some(format!("plant integration failed: {error}{cause}"));
-            t = plant.time();
-            break;
+        let tick_time = t;
+        // One piece per recorded instant, the last ending at the next tick (without rows
+        // between ticks: one piece of a whole period). The integrator lands a step on each
+        // instant and carries its step size on, so every piece is under error control.
+        for j in 1..=between + 1 {
+            let step = if j > between {
+                period - offset(between)
+            } else {
+                offset(j) - offset(j - 1)
+            };
+            let step_start = Instant::now();
+            let advanced = plant.advance(step);
+            integration_time += step_start.elapsed();
+            if let Err(error) = advanced {
+                let cause = plant
+                    .last_dynamics_error()
+                    .map_or(String::new(), |e| format!(" ({e})"));
+                stopped = Some(format!("plant integration failed: {error}{cause}"));
+                t = plant.time();
+                break 'ticks;
+            }
+            if j > between {
+                break;
+            }
+            let at = tick_time + offset(j);
+            model
+                .generated
+                .barriers(&model.params, plant.q(), &mut between_barriers);
+            observe(
+                &mut minimum,
+                &mut lowest_by_kind,
+                table,
+                &between_barriers,
+                at,
+            );
+            record.push_row(&Row {
+                t: at,
+                q: plant.q(),
+                qd: plant.qd(),
+                tau: controller.tau(),
+                tau_nom: controller.tau_nom(),
+                b: &between_barriers,
+                extra: &[],
+            })?;
         }
         if k % report_every == 0 {
             progress((k + 1) as f64 / ticks.max(1) as f64);
@@ -516,7 +621,9 @@ pub fn simulate(
         scenario: scenario.name.clone(),
         robot: model.robot.name.clone(),
         duration: t,
-        control_period: scenario.control_period,
+        control_period: period,
+        record_period,
+        dense: between > 0,
         min_barrier: minimum,
         lowest_by_kind,
         final_q,

@@ -337,3 +337,91 @@ fn settings_that_cannot_work_are_refused_with_the_option_or_field_named() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--record-period` records rows between ticks and says so: in summary.json, on the
+/// `settings:` line and in the one-line summary; `--plant` integrates another robot of the
+/// same structure, recorded with its file.
+#[test]
+fn record_period_and_plant_from_the_command_line() {
+    let dir = temp_dir("dense");
+    let out = dir.join("dense");
+    let output = simulate(&[
+        "--out",
+        out.to_str().unwrap(),
+        "--duration",
+        "0.05",
+        "--control-period",
+        "0.002",
+        "--record-period",
+        "0.0005",
+        "--no-filter",
+    ]);
+    assert!(output.status.success(), "{output:?}");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("; recorded every 500 µs (command line);"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("lowest barrier (dense, every 500 µs) "),
+        "{stdout}"
+    );
+    let dense: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(dense["dense"], true);
+    assert_eq!(dense["record_period"], 0.0005);
+    assert_eq!(
+        setting(&dense, "record_period"),
+        (&Value::from(0.0005), "command_line")
+    );
+    assert_eq!(dense["settings"]["plant"], Value::Null);
+    // 25 ticks of 2 ms, 3 rows between each two, the final tick: 101 rows and the header.
+    let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 102);
+    assert_eq!(dense["counts"]["ticks"], 26);
+
+    // A plant robot whose axial stiffness is half the controller's.
+    let text = std::fs::read_to_string(repo("robots/paper-sim.toml")).unwrap();
+    let soft = text.replace("axial_stiffness = 10.0", "axial_stiffness = 5.0");
+    assert_ne!(soft, text);
+    let plant = dir.join("soft-plant.toml");
+    std::fs::write(&plant, soft).unwrap();
+    let run = |out: &Path, plant: Option<&Path>| {
+        let mut args = vec!["--duration", "0.05", "--no-filter"];
+        if let Some(plant) = plant {
+            args.extend(["--plant", plant.to_str().unwrap()]);
+        }
+        summary(out, &args)
+    };
+    let with_plant = run(&dir.join("plant"), Some(&plant));
+    let without = run(&dir.join("model"), None);
+    let plant_setting = &with_plant["settings"]["plant"];
+    assert_eq!(plant_setting["source"], "command_line");
+    assert_eq!(plant_setting["value"]["file"], plant.to_str().unwrap());
+    assert_eq!(without["settings"]["plant"], Value::Null);
+    let trajectory =
+        |run: &str| std::fs::read_to_string(dir.join(run).join("trajectory.csv")).unwrap();
+    assert_ne!(trajectory("plant"), trajectory("model"));
+
+    // Refusals name the option.
+    let out = dir.join("refused");
+    let out = out.to_str().unwrap();
+    let stderr = refused(&["--record-period", "0", "--out", out], 1);
+    assert!(
+        stderr.contains("--record-period: must be ≥ 1e-6"),
+        "{stderr}"
+    );
+    let stderr = refused(&["--record-period", "0.002", "--out", out], 1);
+    assert!(
+        stderr.contains("--record-period: 0.002 s is longer than the control period (0.001 s)"),
+        "{stderr}"
+    );
+    let three = repo("robots/three-square.toml");
+    let stderr = refused(&["--plant", three.to_str().unwrap(), "--out", out], 1);
+    assert!(
+        stderr.contains("error: --plant: the plant robot ")
+            && stderr.contains("it has 3 modules, the controller's robot 2"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -318,3 +318,33 @@ mod tests {
         );
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Dense records of a simulation (scenario `record_period`, `--record-period`).
+
+/// Time between recorded rows of a simulation \[s\] (`record_period`): 1 µs, the shortest
+/// control period ([`CONTROL_PERIOD_S`]), to 1 s; a scenario also needs it no longer than
+/// its control period.
+pub const RECORD_PERIOD_S: Limit = Limit::closed(1e-6, 1.0, "s");
+
+#[cfg(test)]
+mod record_period_tests {
+    use super::*;
+
+    #[test]
+    fn the_record_period_spans_the_control_periods() {
+        assert_eq!(RECORD_PERIOD_S.min, CONTROL_PERIOD_S.min);
+        assert_eq!(RECORD_PERIOD_S.max, CONTROL_PERIOD_S.max);
+        assert_eq!(RECORD_PERIOD_S.check(1e-3), Ok(1e-3));
+        assert_eq!(
+            RECORD_PERIOD_S.check(0.0).unwrap_err(),
+            "must be ≥ 1e-6 and ≤ 1 s, got 0"
+        );
+        assert!(
+            RECORD_PERIOD_S
+                .check(f64::NAN)
+                .unwrap_err()
+                .contains("finite")
+        );
+    }
+}

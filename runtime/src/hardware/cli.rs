@@ -508,6 +508,8 @@ pub fn run_settings_report(
             },
         ),
         integrator: None,
+        record_period: None,
+        plant: None,
     }
 }
 
