@@ -1077,9 +1077,12 @@ fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f
         // previous command) is given the time 1/p2 to slow down, and no credit is taken for
         // a barrier moving away.
         let b_dot = dot(&barriers.jacobian()[k * nq..(k + 1) * nq], qd).min(-p1 * b);
+        // Below zero already (a disturbance, a plant off the model), the floor is the
+        // comparison curve itself: back toward zero at the rate p1, not at once.
+        let lowest = if b >= 0.0 { 0.0 } else { f64::NEG_INFINITY };
         for j in 0..m {
             let t = sampled.prediction.time(j);
-            sampled.floor[j * nb + k] = comparison(b, b_dot, p1, p2, t).max(0.0);
+            sampled.floor[j * nb + k] = comparison(b, b_dot, p1, p2, t).max(lowest);
         }
     }
 
