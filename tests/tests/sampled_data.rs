@@ -343,3 +343,59 @@ fn comparison_curve_solves_its_equation() {
         }
     }
 }
+
+/// The figures of docs/model.md §5 (run with `--ignored --nocapture`): for each safety mode
+/// at 33 Hz, over the paper's set point and 200 random ones (the seed of the test above),
+/// the lowest recorded barrier, the runs below −1e-6 m or with fallbacks, and the set-point
+/// error; and the same at 1 kHz for the paper's rows, the continuous-time reference.
+#[test]
+#[ignore = "measurement for the documentation; prints a table"]
+fn report_safety_modes() {
+    let model = Model::new(Robot::paper_sim()).unwrap();
+    let mut rng = softcbf_tests::rng(1333);
+    let mut set_points = vec![PAPER_SIM.to_vec()];
+    set_points.extend((0..200).map(|_| random_set_point(&mut rng, 2)));
+    for (safety, period) in [
+        (SafetyMode::Paper, 1e-3),
+        (SafetyMode::Paper, PERIOD),
+        (SafetyMode::HoldCorrection, PERIOD),
+        (SafetyMode::Sampled, PERIOD),
+    ] {
+        let (mut lowest, mut below, mut troubled, mut errors) = (f64::INFINITY, 0, 0, Vec::new());
+        let mut worst = Vec::new();
+        let start = std::time::Instant::now();
+        for set_point in &set_points {
+            let mut scenario = scenario(&model, set_point, 4.0, safety, None);
+            scenario.control_period = period;
+            scenario.controller.hold = period;
+            scenario.tolerances.h_max = period;
+            let summary = simulate(&model, &scenario, true, &mut |_| {})
+                .unwrap()
+                .summary;
+            let (low, bad) = verdict(&summary);
+            let low = if summary.stopped.is_some() {
+                f64::NEG_INFINITY
+            } else {
+                low
+            };
+            if low < lowest {
+                lowest = low;
+                worst = set_point.clone();
+            }
+            below += usize::from(low < TOLERANCE);
+            troubled += usize::from(bad > 0);
+            errors.push(summary.set_point_error);
+        }
+        // The first set point is the paper's.
+        let paper = errors[0];
+        errors.sort_by(f64::total_cmp);
+        println!(
+            "{safety:>16} at {:>6.1} Hz: lowest {lowest:.3e} m, {below} runs below -1e-6, \
+             {troubled} with fallbacks; set-point error median {:.4} m, paper set point {paper:.4} m \
+             ({:.1} s); worst at {worst:?}",
+            1.0 / period,
+            errors[errors.len() / 2],
+            start.elapsed().as_secs_f64()
+        );
+    }
+}

@@ -119,23 +119,24 @@ fn waypoint_reference_is_tracked() {
 }
 
 /// The three-module square-plate robot at 1 kHz: with the paper's rows a barrier dips below
-/// zero between ticks (the zero-order hold on a stiff plant); with the hold correction every
-/// barrier stays non-negative, and the scenario file is loaded with its relative robot path.
+/// zero between ticks (the zero-order hold on a stiff plant); with the default sampled-data
+/// rows every barrier stays non-negative, and the scenario file is loaded with its relative
+/// robot path.
 #[test]
-fn hold_correction_keeps_three_square_barriers() {
+fn sampled_rows_keep_three_square_barriers() {
     let file = ScenarioFile::load(Path::new("../scenarios/three-square.toml")).unwrap();
     let robot = load_robot(file.robot_path().as_deref()).unwrap();
     let model = Model::new(robot).unwrap();
     assert_eq!(model.nq(), 9);
     let mut scenario = file.resolve(&model).unwrap();
-    assert_eq!(scenario.controller.safety, SafetyMode::HoldCorrection);
+    assert_eq!(scenario.controller.safety, SafetyMode::Sampled);
     assert_eq!(scenario.controller.hold, scenario.control_period);
     scenario.duration = 3.0;
-    let corrected = run(&model, &scenario, true);
-    let lowest = min_barrier(&corrected);
+    let sampled = run(&model, &scenario, true);
+    let lowest = min_barrier(&sampled);
     assert!(
         lowest >= -1e-6,
-        "with the hold correction: lowest barrier {lowest}"
+        "with the sampled rows: lowest barrier {lowest}"
     );
     scenario.controller.safety = SafetyMode::Paper;
     let paper_rows = run(&model, &scenario, true);
