@@ -3,8 +3,9 @@
 
 /// Done, and safe: every barrier stayed above the threshold and every tick was valid.
 pub const OK: u8 = 0;
-/// Not done, or not all of it: a bad file, setting or port, a safe start that refused, an
-/// output (log, figure, standard output) that could not be written.
+/// Not done, or not all of it: a bad file, setting or port, a loop rate the bus cannot hold
+/// (measured before torque on), a safe start that refused, an output (log, figure, standard
+/// output) that could not be written.
 pub const ERROR: u8 = 1;
 /// The command line could not be read (unknown option, missing value).
 pub const USAGE: u8 = 2;

@@ -11,11 +11,14 @@ use softcbf_description::robot::Robot;
 
 use crate::cli::{check_number, parse_coordinates};
 use crate::exit;
+use crate::hardware::bus_check::{self, BusTiming, LatencyTimer, RateChoice, RateRule};
 use crate::hardware::description::{self, Hardware};
 use crate::hardware::emulator::{self, EmulatorSettings, Faults, Preset};
 use crate::hardware::limits as servo;
 use crate::hardware::mapping::TendonMap;
-use crate::hardware::run_loop::{self, RunSettings, RunSummary, StopReason, Verdict};
+use crate::hardware::run_loop::{
+    self, RunError, RunSettings, RunSummary, StartReport, StopReason, Verdict,
+};
 use crate::hardware::signal;
 use crate::hardware::status_line::StatusLine;
 use crate::model::Model;
@@ -98,11 +101,12 @@ pub struct RunArgs {
     /// `softcbf emulate` printed).
     #[arg(long)]
     pub port: String,
-    /// Loop rate (Hz), 1 to 10000 (default: 33, the paper's).
-    #[arg(long, allow_negative_numbers = true)]
-    pub rate: Option<f64>,
+    /// Loop rate (Hz), 1 to 10000, or `auto`: the rate the bus allows, with a margin
+    /// (default: 33, the paper's). A rate the bus cannot hold is refused at the start.
+    #[arg(long, allow_hyphen_values = true)]
+    pub rate: Option<String>,
     /// Lowest rate the loop may fall to (a slow bus) before it stops safely (Hz)
-    /// (default: half of --rate).
+    /// (default: half of the loop rate; with --rate auto at most 16.5 Hz).
     #[arg(long, allow_negative_numbers = true)]
     pub min_rate: Option<f64>,
     /// Stop after this many seconds (default: run until Ctrl-C).
@@ -340,25 +344,25 @@ pub fn run_settings(
             as u32;
     }
     let default_set_point = hardware.set_point.clone();
-    let rate = match args.rate {
-        Some(rate) => check_number("--rate", rate, &limits::RATE_HZ)?,
-        None => DEFAULT_RATE,
+    let (rate, rate_rule) = match args.rate.as_deref() {
+        Some(text) => parse_rate(text)?,
+        None => (DEFAULT_RATE, RateRule::Hold),
     };
     let set_point = match &args.set_point {
         Some(text) => parse_coordinates("--set-point", text, robot)?,
         None => default_set_point,
     };
     let mut settings = RunSettings::new(rate, set_point);
+    settings.rate_rule = rate_rule;
     if let Some(min_rate) = args.min_rate {
-        settings.min_rate = check_number("--min-rate", min_rate, &limits::RATE_HZ)?;
-        settings.bus_watchdog = RunSettings::default_bus_watchdog(settings.min_rate);
+        settings.min_rate = Some(check_number("--min-rate", min_rate, &limits::RATE_HZ)?);
     }
     if let Some(duration) = args.duration {
         settings.duration = Some(check_number("--duration", duration, &limits::DURATION_S)?);
     }
     if let Some(ms) = args.bus_watchdog_ms {
         settings.bus_watchdog =
-            check_number("--bus-watchdog-ms", ms, &servo::BUS_WATCHDOG_MS)? / 1000.0;
+            Some(check_number("--bus-watchdog-ms", ms, &servo::BUS_WATCHDOG_MS)? / 1000.0);
     }
     settings.filter = !args.no_filter;
     settings.predict = !args.no_prediction;
@@ -373,6 +377,22 @@ pub fn run_settings(
     Ok((settings, threshold))
 }
 
+/// `--rate`: a number of Hz in [`limits::RATE_HZ`], refused when the bus cannot hold it, or
+/// `auto` (the fastest loop rate as the ceiling, adapted to the bus).
+pub fn parse_rate(text: &str) -> Result<(f64, RateRule), String> {
+    let text = text.trim();
+    if text == "auto" {
+        return Ok((limits::RATE_HZ.max, RateRule::Adapt));
+    }
+    let rate: f64 = text
+        .parse()
+        .map_err(|_| format!("--rate: `{text}` is neither a number of Hz nor `auto`"))?;
+    Ok((
+        check_number("--rate", rate, &limits::RATE_HZ)?,
+        RateRule::Hold,
+    ))
+}
+
 /// Creates `dir` for a run's outputs; refuses a path that is a file.
 pub fn output_directory(dir: &Path, option: &str) -> Result<(), String> {
     if dir.exists() && !dir.is_dir() {
@@ -383,6 +403,61 @@ pub fn output_directory(dir: &Path, option: &str) -> Result<(), String> {
     }
     std::fs::create_dir_all(dir)
         .map_err(|e| format!("{option}: cannot create {}: {e}", dir.display()))
+}
+
+/// The adapter's latency timer of `port` (Linux only: elsewhere nothing is known).
+fn port_latency_timer(port: &str) -> Option<LatencyTimer> {
+    if cfg!(target_os = "linux") {
+        Some(bus_check::latency_timer(
+            Path::new(port),
+            Path::new(bus_check::SYSFS),
+        ))
+    } else {
+        None
+    }
+}
+
+/// Prints the bus check and the rate decided as the run starts, and keeps the settings
+/// report of the rate run at.
+struct StartPrinter<'a> {
+    console: &'a mut Console,
+    args: &'a RunArgs,
+    robot: &'a Robot,
+    hardware: &'a Hardware,
+    used: Option<SettingsReport>,
+}
+
+impl StartReport for StartPrinter<'_> {
+    fn bus_measured(&mut self, timing: &BusTiming) {
+        self.console.say(&timing.line());
+    }
+
+    fn running(&mut self, choice: RateChoice, settings: &RunSettings) {
+        let rate = match choice {
+            RateChoice::Asked(rate) => format!("{rate} Hz"),
+            RateChoice::Adapted(rate) => format!(
+                "{rate} Hz, chosen by --rate auto ({:.0} % of what the bus allows)",
+                bus_check::AUTO_RATE_MARGIN * 100.0
+            ),
+            RateChoice::Overrunning(rate) => {
+                format!("{rate} Hz, beyond what the bus allows: ticks back to back")
+            }
+        };
+        let watchdog = settings.bus_watchdog();
+        self.console.say(&format!(
+            "loop: {rate}, at least {} Hz, prediction {}, bus watchdog {}",
+            settings.min_rate(),
+            if settings.predict { "on" } else { "off" },
+            if watchdog > 0.0 {
+                format!("{:.0} ms", watchdog * 1000.0)
+            } else {
+                "off".to_string()
+            },
+        ));
+        let used = run_settings_report(self.args, self.robot, self.hardware, settings);
+        self.console.say(&used.line());
+        self.used = Some(used);
+    }
 }
 
 /// `softcbf run`: the safe controller on the servos; the exit status says whether the run
@@ -401,26 +476,56 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         .map_err(|e| format!("--port: cannot open {}: {e}", args.port))?;
     let mut bus = Bus::new(port, Duration::from_secs_f64(hardware.reply_timeout));
     let log = super::log::open(&args.out, &model, map.n_servos())?;
-    let used = run_settings_report(&args, &robot, &hardware, &settings);
     console.say(&format!(
-        "softcbf run: `{}` on {} at {} bit/s, {} Hz (at least {} Hz), prediction {}, bus \
-         watchdog {}",
+        "softcbf run: `{}` on {} at {} bit/s, {}",
         robot.name,
         args.port,
         hardware.baud,
-        settings.rate,
-        settings.min_rate,
-        if settings.predict { "on" } else { "off" },
-        if settings.bus_watchdog > 0.0 {
-            format!("{:.0} ms", settings.bus_watchdog * 1000.0)
+        if settings.rate_rule == RateRule::Adapt {
+            "rate auto (from the bus)".to_string()
         } else {
-            "off".to_string()
+            format!("{} Hz asked", settings.rate)
         },
     ));
-    console.say(&used.line());
+    let latency = port_latency_timer(&args.port);
+    for line in latency.iter().flat_map(LatencyTimer::lines) {
+        console.say(&line);
+    }
     let mut log = StatusLine::new(log, !args.quiet);
-    let summary = run_loop::run(&model, &map, &mut bus, &settings, &mut log, stop)
-        .map_err(|e| e.to_string())?;
+    let mut printer = StartPrinter {
+        console,
+        args: &args,
+        robot: &robot,
+        hardware: &hardware,
+        used: None,
+    };
+    let result = run_loop::run_reporting(
+        &model,
+        &map,
+        &mut bus,
+        &settings,
+        &mut log,
+        stop,
+        &mut printer,
+    );
+    let used = printer.used.take();
+    let summary = match result {
+        Ok(summary) => summary,
+        Err(error @ RunError::RateRefused(_)) => {
+            let mut message = error.to_string();
+            if let Some(LatencyTimer::Found { ms, .. }) = latency.as_ref().filter(|l| l.too_long())
+            {
+                message.push_str(&format!(
+                    "; the adapter's latency timer of {ms} ms lengthens every reply: lower it \
+                     to 1 ms (see above)"
+                ));
+            }
+            return Err(message);
+        }
+        Err(error) => return Err(error.to_string()),
+    };
+    // Stopped before the rate was decided (a signal at the start): the settings asked.
+    let used = used.unwrap_or_else(|| run_settings_report(&args, &robot, &hardware, &settings));
     let log = log.into_inner();
     report(&summary, threshold, console);
     let mut code = match summary.verdict(threshold) {
@@ -436,7 +541,18 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     };
     // The log is closed and drawn whatever becomes of the summary, and the other way round.
     let logged = super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model);
-    let summarized = write_summary(&args.out, &used, &settings.set_point, &summary, threshold);
+    let latency_ms = match latency {
+        Some(LatencyTimer::Found { ms, .. }) => Some(ms),
+        _ => None,
+    };
+    let summarized = write_summary(
+        &args.out,
+        &used,
+        &settings.set_point,
+        &summary,
+        threshold,
+        latency_ms,
+    );
     let mut files = Vec::new();
     for (written, what) in [
         (logged, "the log or figures"),
@@ -517,13 +633,17 @@ pub fn run_settings_report(
 /// with `controller` and `set_point` as `softcbf simulate` writes them; the lowest barrier
 /// overall (`min_barrier`) and per kind group (`lowest_by_kind`, keyed by
 /// `KindGroup::key`), each with `value` (`null` when no reading was made), `label`, `t`
-/// and `unit`.
+/// and `unit`; the deadlines (`deadline_overruns`, `hold_overruns`, `longest_period` and
+/// `longest_hold_excess` in s); the loop rate run at (`loop_rate`, Hz, and
+/// `rate_from_bus`), the bus check (`bus_check`: cycle times in s, `rate_limit` in Hz) and
+/// the adapter's `latency_timer_ms` (`null` when unknown or absent).
 fn write_summary(
     dir: &Path,
     settings: &SettingsReport,
     set_point: &[f64],
     s: &RunSummary,
     threshold: f64,
+    latency_timer_ms: Option<u32>,
 ) -> Result<PathBuf, String> {
     let verdict = match s.verdict(threshold) {
         Verdict::Safe => "safe".to_string(),
@@ -552,9 +672,23 @@ fn write_summary(
         "fallbacks": s.fallbacks,
         "invalid_state": s.invalid,
         "relaxed": s.relaxed,
-        "overruns": s.overruns,
+        "deadline_overruns": s.deadlines.deadline_overruns,
+        "hold_overruns": s.deadlines.hold_overruns,
+        "longest_period": s.deadlines.longest_period,
+        "longest_hold_excess": s.deadlines.longest_hold_excess,
         "elapsed": s.elapsed,
         "rate": s.rate(),
+        "loop_rate": s.rate_choice.map(RateChoice::rate),
+        "rate_from_bus": matches!(s.rate_choice, Some(RateChoice::Adapted(_))),
+        "bus_check": s.bus_timing.map(|t| serde_json::json!({
+            "cycles": t.cycles,
+            "retried": t.retried,
+            "median": t.median,
+            "p90": t.slow,
+            "max": t.max,
+            "rate_limit": t.rate_limit(),
+        })),
+        "latency_timer_ms": latency_timer_ms,
         "min_barrier": lowest(&s.min_barrier),
         "lowest_by_kind": s
             .lowest_by_kind
@@ -590,7 +724,7 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
     };
     console.say(&format!("stopped: {stop}"));
     console.say(&format!(
-        "{} ticks in {:.2} s ({:.1} Hz): {} commands, {} held (no fresh reading), {} safe fallbacks ({} invalid states), {} relaxed, {} overruns",
+        "{} ticks in {:.2} s ({:.1} Hz): {} commands, {} held (no fresh reading), {} safe fallbacks ({} invalid states), {} relaxed, {} deadline overruns",
         s.ticks,
         s.elapsed,
         s.rate(),
@@ -599,11 +733,19 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
         s.fallbacks,
         s.invalid,
         s.relaxed,
-        s.overruns
+        s.deadlines.deadline_overruns
     ));
     console.say(&format!(
-        "timing: longest interval between commands {:.1} ms, oldest reading {:.1} ms when its command arrived, longest software time {:.1} µs{}",
-        s.max_interval * 1e3,
+        "deadlines: {} ticks overran (ended more than a period after they were due); {} \
+         commands overran their hold (in force longer than the Δ they were computed for, by \
+         at most {:.2} ms); longest in force {:.1} ms",
+        s.deadlines.deadline_overruns,
+        s.deadlines.hold_overruns,
+        s.deadlines.longest_hold_excess * 1e3,
+        s.deadlines.longest_period * 1e3
+    ));
+    console.say(&format!(
+        "timing: oldest reading {:.1} ms when its command arrived, longest software time {:.1} µs{}",
         s.max_age * 1e3,
         s.max_compute * 1e6,
         if s.prediction_failures > 0 {
@@ -708,6 +850,27 @@ mod tests {
         let line = report.line();
         assert!(line.contains("K_P = 8 (command line)"), "{line}");
         assert!(line.contains("p2 = 15 (command line)"), "{line}");
+    }
+
+    #[test]
+    fn rate_auto_adapts_to_the_bus_and_other_words_are_refused() {
+        let (settings, report) = settings_of(&["--rate", "auto"]).unwrap();
+        assert_eq!(settings.rate_rule, RateRule::Adapt);
+        assert_eq!(settings.rate, limits::RATE_HZ.max);
+        assert_eq!(settings.min_rate, None);
+        assert_eq!(report.control_period.source, Source::CommandLine);
+        let (settings, _) = settings_of(&["--rate", "40"]).unwrap();
+        assert_eq!(settings.rate_rule, RateRule::Hold);
+        assert_eq!(settings.rate, 40.0);
+        let error = settings_of(&["--rate", "fast"]).err().unwrap();
+        assert_eq!(error, "--rate: `fast` is neither a number of Hz nor `auto`");
+        let error = settings_of(&["--rate", "-33"]).err().unwrap();
+        assert!(error.starts_with("--rate: must be"), "{error}");
+        let error = settings_of(&["--rate", "20000"]).err().unwrap();
+        assert!(error.starts_with("--rate: must be"), "{error}");
+        // A minimum rate with auto is checked once the rate is chosen.
+        let (settings, _) = settings_of(&["--rate", "auto", "--min-rate", "20"]).unwrap();
+        assert_eq!(settings.min_rate, Some(20.0));
     }
 
     #[test]

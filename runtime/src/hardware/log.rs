@@ -29,16 +29,18 @@ pub trait RunLog {
 /// | `comm_errors` | ticks in a row without a reading (held) |
 /// | `read [us]`, `compute [us]`, `write [us]` | bus wait, software, write |
 /// | `late [us]` | start after schedule |
-/// | `overrun` | 0/1 |
+/// | `overrun` | 1: a deadline overrun, the tick ended more than a period after it was due |
 /// | `clamp_low`, `clamp_high` | tensions clamped at `f_min`, `f_max` this tick |
 /// | `age [us]` | age of the reading when the command reaches the servos |
 /// | `period [us]` | time since the previous command |
 /// | `hold [us]` | the hold period the controller assumed |
+/// | `hold_excess [us]` | how much longer than its hold the previous command stayed in force (> 0: a hold overrun; NaN: no command this tick) |
 /// | `gain_scale` | the factor of the HOCBF gains, `nominal period / hold` |
 /// | `f module i tendon k [N]` | tensions sent |
 /// | `qpred <c> [m]` | the `q` the command was computed at: the state read, predicted `age` ahead |
 ///
-/// `q`, `q̇` and `b` are at the state read.
+/// `q`, `q̇` and `b` are at the state read. Logs written before `hold_excess [us]` existed
+/// lack it and read as well (columns are found by name).
 pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
     let mut names: Vec<String> = [
         "fresh",
@@ -55,6 +57,7 @@ pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
         "age [us]",
         "period [us]",
         "hold [us]",
+        "hold_excess [us]",
         "gain_scale",
     ]
     .iter()
@@ -66,7 +69,7 @@ pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
 }
 
 /// Number of extra columns before the tensions.
-pub const FIXED_EXTRA: usize = 15;
+pub const FIXED_EXTRA: usize = 16;
 
 /// The streaming CSV log of a run.
 pub struct CsvLog {

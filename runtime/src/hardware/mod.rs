@@ -7,11 +7,14 @@
 //! - [`mapping`]: servo angles → `q`, `q̇`; `τ` → tensions → currents, and back.
 //! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
 //! - [`servo_io`]: safe start, the per-tick sync read/write with retries, safe stop.
+//! - [`bus_check`]: the round trip measured at the start, the rate it allows, the USB
+//!   adapter's latency timer.
 //! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`run_settings`] what it
 //!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures;
 //!   [`status_line`] the live line on the terminal.
 //! - [`signal`]: terminating signals as flags the loops poll; [`cli`]: the two subcommands' options.
 
+pub mod bus_check;
 pub mod cli;
 pub mod control_table;
 pub mod description;

@@ -2,6 +2,11 @@
 //! sync write, with the safe start and safe stop of [`servo_io`], a log row every tick and
 //! a summary at the end.
 //!
+//! **The bus first.** Once the servos are prepared (torque off, zero goal current),
+//! [`bus_check::measure`] times the loop's read-and-write cycle; a rate the bus cannot hold
+//! is refused (torque stays off), or with [`RateRule::Adapt`] (`--rate auto`) the rate it
+//! allows with a margin is chosen ([`bus_check::choose_rate`]).
+//!
 //! **Ticks and their timing.** Ticks are scheduled at `start + k / rate`; a tick whose
 //! write ends after the next tick's start is an overrun, and the next tick then starts at
 //! once (no burst to catch up), so a slow bus runs the loop at the rate it can. The loop
@@ -14,7 +19,10 @@
 //! the HOCBF class-K gains are scaled by `nominal / achieved`, so that their product with
 //! the hold, on which the sampled loop's behaviour depends, stays what it is at the
 //! nominal rate (smaller gains are also a stricter constraint). When the achieved rate
-//! falls below `min_rate`, the loop stops safely and says so.
+//! falls below `min_rate`, the loop stops safely and says so. Every deadline is watched: a
+//! tick that ends more than a period after it was due is a deadline overrun, and a command
+//! that stays in force longer than the hold it was computed for (until the next command or
+//! the safe stop) a hold overrun, both counted in the summary and logged per tick.
 //!
 //! **Faults.** A tick without a fresh reading of every servo (after the retries of the
 //! robot file's `[hardware]` table) sends nothing: the servos keep the previous command,
@@ -34,6 +42,7 @@ use softcbf_description::domain;
 use crate::control::{
     self, Controller, ControllerError, ControllerSettings, Reference, TickStatus,
 };
+use crate::hardware::bus_check::{self, BusTiming, RateChoice, RateRefusal};
 use crate::hardware::emulator::{wait_until, wire_time};
 use crate::hardware::mapping::{Clamps, TendonMap};
 use crate::hardware::servo_io::{self, ServoIo, ServoPort, StartError};
@@ -43,9 +52,10 @@ use crate::plant::Plant;
 use crate::protocol::{Bus, BusCounters};
 use crate::sim::{BarrierMinimum, LowestByKind};
 
+pub use crate::hardware::bus_check::RateRule;
 use crate::hardware::log::FIXED_EXTRA;
 pub use crate::hardware::log::{RunLog, extra_columns};
-pub use crate::hardware::run_outcome::{RunSummary, StopReason, Verdict};
+pub use crate::hardware::run_outcome::{Deadlines, RunSummary, StopReason, Verdict};
 pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RunSettings};
 pub use crate::record::Row;
 
@@ -79,7 +89,21 @@ pub enum RunError {
     /// The safe start refused to enable torque (torque was then switched off everywhere).
     #[error("safe start failed, torque left off: {0}")]
     Start(#[from] StartError),
+    /// The bus cannot hold the rate asked for (torque was never enabled).
+    #[error("{0}; torque left off")]
+    RateRefused(#[from] RateRefusal),
 }
+
+/// What the start of a run reports as it happens (the command line prints it).
+pub trait StartReport {
+    /// The round trip of the loop's traffic was measured.
+    fn bus_measured(&mut self, _timing: &BusTiming) {}
+    /// The rate is decided; `settings` are the ones the loop runs with.
+    fn running(&mut self, _choice: RateChoice, _settings: &RunSettings) {}
+}
+
+/// Reports nothing.
+impl StartReport for () {}
 
 /// Fraction of the Bus Watchdog a pause between instructions may reach before the loop
 /// stops, not knowing whether the servos stopped by themselves.
@@ -125,6 +149,8 @@ struct Workspace<'m> {
     log_error: Option<String>,
     /// When the first tick started.
     first_tick: Option<Instant>,
+    /// When the last command was computed, and the hold `Δ` it was computed for \[s\].
+    last_command: Option<(Instant, f64)>,
 }
 
 /// Timing of one tick, for its log row.
@@ -138,12 +164,16 @@ struct TickTiming {
     age: f64,
     interval: f64,
     hold: f64,
+    /// How much longer than its hold the previous command stayed in force \[s\] (NaN: no
+    /// command this tick).
+    hold_excess: f64,
     gain_scale: f64,
 }
 
 /// Runs the controller on the servos behind `bus` until the duration, `stop`, or a fault.
-/// Safe start first (on failure torque is switched off and the error returned), safe stop
-/// always, also after a panic inside the loop. `log` gets one row per tick.
+/// The servos prepared (torque off), the bus check, then the rest of the safe start (on a
+/// failure, or a rate the bus cannot hold, torque is switched off and the error returned);
+/// safe stop always, also after a panic inside the loop. `log` gets one row per tick.
 pub fn run<P: ServoPort>(
     model: &Model,
     map: &TendonMap,
@@ -151,6 +181,19 @@ pub fn run<P: ServoPort>(
     settings: &RunSettings,
     log: &mut dyn RunLog,
     stop: &AtomicBool,
+) -> Result<RunSummary, RunError> {
+    run_reporting(model, map, bus, settings, log, stop, &mut ())
+}
+
+/// [`run`], telling `report` what the bus check found and which rate the loop runs at.
+pub fn run_reporting<P: ServoPort>(
+    model: &Model,
+    map: &TendonMap,
+    bus: &mut Bus<P>,
+    settings: &RunSettings,
+    log: &mut dyn RunLog,
+    stop: &AtomicBool,
+    report: &mut dyn StartReport,
 ) -> Result<RunSummary, RunError> {
     let nq = model.nq();
     settings.validate(nq).map_err(RunError::Setting)?;
@@ -188,6 +231,7 @@ pub fn run<P: ServoPort>(
         intervals: [period; RATE_WINDOW],
         log_error: None,
         first_tick: None,
+        last_command: None,
     };
     let watchdog = settings.bus_watchdog_units() > 0;
     // Start-up transactions are retried as patiently as the loop's readings.
@@ -201,7 +245,7 @@ pub fn run<P: ServoPort>(
         fallbacks: 0,
         invalid: 0,
         relaxed: 0,
-        overruns: 0,
+        deadlines: Deadlines::default(),
         clamps: Clamps::default(),
         bus: BusCounters::default(),
         min_barrier: BarrierMinimum::none(),
@@ -209,16 +253,35 @@ pub fn run<P: ServoPort>(
         elapsed: 0.0,
         max_compute: 0.0,
         max_age: 0.0,
-        max_interval: 0.0,
         prediction_failures: 0,
         torque_off: Vec::new(),
+        bus_timing: None,
+        rate_choice: None,
     };
-    let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<StopReason, StartError> {
+    let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<StopReason, RunError> {
         // Told to stop before the start (a signal while the port opened): torque stays off.
         if stop.load(Ordering::Relaxed) {
             return Ok(StopReason::Interrupted);
         }
-        safe_start(model, map, bus, &mut io, &mut ws, settings, attempts)?;
+        let units = settings.bus_watchdog_units();
+        servo_io::prepare(bus, io.ids(), hardware.model_number, units > 0, attempts)?;
+        // The loop's own traffic, torque off, zero tension.
+        let zero_currents = vec![0; n];
+        let timing = bus_check::measure(bus, &mut io, &zero_currents, hardware.retries)?;
+        summary.bus_timing = Some(timing);
+        report.bus_measured(&timing);
+        let choice = bus_check::choose_rate(settings.rate, settings.rate_rule, &timing)?;
+        let settings = settings.at_rate(choice.rate());
+        settings.validate(nq).map_err(RunError::Setting)?;
+        summary.rate_choice = Some(choice);
+        report.running(choice, &settings);
+        controller.set_hold(1.0 / settings.rate);
+        // A signal during the bus check: torque stays off.
+        if stop.load(Ordering::Relaxed) {
+            return Ok(StopReason::Interrupted);
+        }
+        safe_start(model, map, bus, &mut io, &mut ws, attempts)?;
+        enable(bus, &mut io, &mut ws, &settings, &timing, attempts)?;
         Ok(control_loop(
             model,
             map,
@@ -226,7 +289,7 @@ pub fn run<P: ServoPort>(
             &mut io,
             &mut ws,
             &mut controller,
-            settings,
+            &settings,
             log,
             stop,
             &mut summary,
@@ -236,7 +299,7 @@ pub fn run<P: ServoPort>(
         Ok(Ok(reason)) => reason,
         Ok(Err(error)) => {
             servo_io::safe_stop(bus, &mut io, watchdog);
-            return Err(error.into());
+            return Err(error);
         }
         Err(panic) => {
             let what = panic
@@ -250,6 +313,12 @@ pub fn run<P: ServoPort>(
         }
     };
     summary.elapsed = ws.first_tick.map_or(0.0, |t| t.elapsed().as_secs_f64());
+    // The last command is in force until the safe stop's zero tension.
+    if let Some((computed, hold)) = ws.last_command {
+        summary
+            .deadlines
+            .command(computed.elapsed().as_secs_f64(), hold);
+    }
     let confirmed = servo_io::safe_stop(bus, &mut io, watchdog);
     summary.torque_off = io.ids().iter().copied().zip(confirmed).collect();
     summary.bus = bus.counters();
@@ -263,23 +332,18 @@ pub fn run<P: ServoPort>(
     Ok(summary)
 }
 
-/// The safe start: servos checked and prepared, a finite state read, cables taut (`f_min`),
-/// the Bus Watchdog armed, torque on.
+/// The safe start after [`servo_io::prepare`] and the bus check, up to torque on: a
+/// finite state read, the goal currents of taut cables (`f_min`) written, torque still off.
 fn safe_start<P: ServoPort>(
     model: &Model,
     map: &TendonMap,
     bus: &mut Bus<P>,
     io: &mut ServoIo,
     ws: &mut Workspace<'_>,
-    settings: &RunSettings,
     attempts: u32,
 ) -> Result<(), StartError> {
-    let hardware = map.hardware();
-    let units = settings.bus_watchdog_units();
-    servo_io::prepare(bus, io.ids(), hardware.model_number, units > 0, attempts)?;
     io.read_states(bus, START_READ_RETRIES.max(attempts))
         .map_err(StartError::State)?;
-    let read_done = Instant::now();
     measure(map, io, ws, VelocitySource::Servo, 0.0, 0.0);
     if let Some(problem) = domain::state_problem(&model.robot, &ws.q, &ws.qd) {
         return Err(StartError::OutOfDomain {
@@ -296,16 +360,25 @@ fn safe_start<P: ServoPort>(
     map.tau_from_tensions(&ws.tensions, &mut ws.tau_applied);
     io.write_currents(bus, &ws.currents)
         .map_err(StartError::State)?;
-    servo_io::enable_torque(bus, io.ids(), units, attempts)?;
+    Ok(())
+}
+
+/// The safe start's end, at the rate decided: the Bus Watchdog armed, torque on (cables at
+/// `f_min`). The first commands are held as long as the bus's median cycle, at least a
+/// period.
+fn enable<P: ServoPort>(
+    bus: &mut Bus<P>,
+    io: &mut ServoIo,
+    ws: &mut Workspace<'_>,
+    settings: &RunSettings,
+    timing: &BusTiming,
+    attempts: u32,
+) -> Result<(), StartError> {
+    servo_io::enable_torque(bus, io.ids(), settings.bus_watchdog_units(), attempts)?;
     ws.qd.fill(0.0);
     ws.q_prev.copy_from_slice(&ws.q);
     bus.reset_counters();
-    // The first commands are held as long as a read and a write take on this bus.
-    if let Some((sent, _)) = io.reading_sent() {
-        let cycle = read_done.duration_since(sent).as_secs_f64()
-            + wire_time(14 + 3 * map.n_servos(), hardware.baud).as_secs_f64();
-        ws.intervals = [cycle.max(1.0 / settings.rate); RATE_WINDOW];
-    }
+    ws.intervals = [timing.median.max(1.0 / settings.rate); RATE_WINDOW];
     Ok(())
 }
 
@@ -329,11 +402,11 @@ fn control_loop<P: ServoPort>(
     let nominal = period.as_secs_f64();
     let write_wire = wire_time(14 + 3 * map.n_servos(), baud).as_secs_f64();
     let barrier_table = model.generated.barrier_table();
+    let (min_rate, bus_watchdog) = (settings.min_rate(), settings.bus_watchdog());
     let start = Instant::now();
     ws.first_tick = Some(start);
     let mut next = start;
     let mut last_reading: Option<Instant> = None;
-    let mut last_command: Option<Instant> = None;
     let mut commands_timed = 0usize;
     let mut compute_estimate = 0.0_f64;
     let mut consecutive = 0u32;
@@ -350,21 +423,22 @@ fn control_loop<P: ServoPort>(
         }
         wait_until(next);
         let tick_start = Instant::now();
-        if settings.bus_watchdog > 0.0
+        if bus_watchdog > 0.0
             && let Some((sent, _)) = bus.last_sent()
         {
             // A margin for the wire and the servo's own clock: past 80 % of the watchdog
             // nobody can tell whether the servos are still pulling.
             let gap = tick_start.duration_since(sent).as_secs_f64();
-            if gap > WATCHDOG_MARGIN * settings.bus_watchdog {
+            if gap > WATCHDOG_MARGIN * bus_watchdog {
                 return StopReason::WatchdogExpired {
                     gap,
-                    watchdog: settings.bus_watchdog,
+                    watchdog: bus_watchdog,
                 };
             }
         }
         let mut timing = TickTiming {
             late: tick_start.duration_since(next),
+            hold_excess: f64::NAN,
             ..TickTiming::default()
         };
         summary.ticks += 1;
@@ -435,14 +509,16 @@ fn control_loop<P: ServoPort>(
                     return StopReason::Fault(format!("cannot write the goal currents: {error}"));
                 }
                 map.tau_from_tensions(&ws.tensions, &mut ws.tau_applied);
-                if let Some(previous) = last_command {
+                timing.hold_excess = 0.0;
+                if let Some((previous, previous_hold)) = ws.last_command {
                     let interval = computed.duration_since(previous).as_secs_f64();
                     timing.interval = interval;
                     ws.intervals[commands_timed % RATE_WINDOW] = interval;
                     commands_timed += 1;
-                    summary.max_interval = summary.max_interval.max(interval);
+                    // The previous command was computed for a hold of `previous_hold`.
+                    timing.hold_excess = summary.deadlines.command(interval, previous_hold);
                 }
-                last_command = Some(computed);
+                ws.last_command = Some((computed, hold));
                 summary.commands += 1;
                 summary.max_age = summary.max_age.max(age);
                 match tick_status {
@@ -495,10 +571,7 @@ fn control_loop<P: ServoPort>(
             }
         };
         let end = Instant::now();
-        timing.overrun = end > next + period;
-        if timing.overrun {
-            summary.overruns += 1;
-        }
+        timing.overrun = summary.deadlines.tick(next, period, end);
         push_row(
             log,
             ws,
@@ -519,10 +592,10 @@ fn control_loop<P: ServoPort>(
         }
         if commands_timed >= RATE_WINDOW {
             let mean = ws.intervals.iter().sum::<f64>() / RATE_WINDOW as f64;
-            if mean * settings.min_rate > 1.0 {
+            if mean * min_rate > 1.0 {
                 return StopReason::RateTooLow {
                     achieved: 1.0 / mean,
-                    min: settings.min_rate,
+                    min: min_rate,
                 };
             }
         }
@@ -616,6 +689,7 @@ fn push_row(
         timing.age * 1e6,
         timing.interval * 1e6,
         timing.hold * 1e6,
+        timing.hold_excess * 1e6,
         timing.gain_scale,
     ];
     ws.extra[..FIXED_EXTRA].copy_from_slice(&fixed);

@@ -1,6 +1,9 @@
-//! How a `softcbf run` ended and what it means: the stop reason, the summary of the ticks,
-//! and the verdict (safe, unsafe, fault) that becomes the command's exit status.
+//! How a `softcbf run` ended and what it means: the stop reason, the summary of the ticks
+//! and their deadlines, and the verdict (safe, unsafe, fault) that becomes the exit status.
 
+use std::time::{Duration, Instant};
+
+use crate::hardware::bus_check::{BusTiming, RateChoice};
 use crate::hardware::mapping::Clamps;
 use crate::hardware::run_loop::RATE_WINDOW;
 use crate::protocol::BusCounters;
@@ -76,6 +79,49 @@ impl std::fmt::Display for StopReason {
     }
 }
 
+/// The deadlines of a run's ticks and the holds of its commands.
+///
+/// A tick is due every period; it overruns its deadline when its read, computation and
+/// write end more than one period after it was due (the next tick is then late). A command
+/// is computed for a hold `Δ` (the sampled-data guarantee holds for that long); it
+/// overruns its hold when it stays in force longer, until the next command or the safe
+/// stop: after a late or slow tick, a tick without a reading, or jitter of the bus.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Deadlines {
+    /// Ticks that ended more than a period after they were due.
+    pub deadline_overruns: u64,
+    /// Commands in force longer than the hold they were computed for.
+    pub hold_overruns: u64,
+    /// The most a command stayed in force beyond its hold \[s\] (`0` when none did).
+    pub longest_hold_excess: f64,
+    /// The longest time one command stayed in force \[s\].
+    pub longest_period: f64,
+}
+
+impl Deadlines {
+    /// A tick due at `due` that ended at `end`, at `period`: whether it overran its deadline
+    /// (then counted).
+    pub fn tick(&mut self, due: Instant, period: Duration, end: Instant) -> bool {
+        let overran = end > due + period;
+        if overran {
+            self.deadline_overruns += 1;
+        }
+        overran
+    }
+
+    /// A command computed for a hold of `hold` seconds stayed in force `in_force` seconds;
+    /// returns how much longer than its hold (`> 0`: a hold overrun, counted).
+    pub fn command(&mut self, in_force: f64, hold: f64) -> f64 {
+        self.longest_period = self.longest_period.max(in_force);
+        let excess = in_force - hold;
+        if excess > 0.0 {
+            self.hold_overruns += 1;
+            self.longest_hold_excess = self.longest_hold_excess.max(excess);
+        }
+        excess
+    }
+}
+
 /// What happened in a run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunSummary {
@@ -95,8 +141,8 @@ pub struct RunSummary {
     pub invalid: u64,
     /// Ticks whose QP had to relax barrier rows.
     pub relaxed: u64,
-    /// Ticks that missed their deadline.
-    pub overruns: u64,
+    /// Deadline and hold overruns, and the longest period.
+    pub deadlines: Deadlines,
     /// Tensions held at their limits, summed over ticks.
     pub clamps: Clamps,
     /// Bus event counts.
@@ -112,12 +158,14 @@ pub struct RunSummary {
     pub max_compute: f64,
     /// Largest age of a reading when its command reached the servos \[s\].
     pub max_age: f64,
-    /// Longest interval between two commands \[s\].
-    pub max_interval: f64,
     /// Ticks whose prediction failed (the command then used the state read).
     pub prediction_failures: u64,
     /// Per servo (bus order): whether its torque-off was confirmed at the stop.
     pub torque_off: Vec<(u8, bool)>,
+    /// The round trip measured at the start (`None`: the run stopped before).
+    pub bus_timing: Option<BusTiming>,
+    /// The loop rate run at, asked or chosen from the bus (`None`: not decided).
+    pub rate_choice: Option<RateChoice>,
 }
 
 impl RunSummary {
@@ -187,4 +235,38 @@ pub enum Verdict {
     Unsafe(String),
     /// It stopped on a fault.
     Fault(String),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tick_overruns_when_it_ends_more_than_a_period_after_it_was_due() {
+        let mut d = Deadlines::default();
+        let due = Instant::now();
+        let period = Duration::from_millis(30);
+        assert!(!d.tick(due, period, due + Duration::from_millis(29)));
+        assert!(!d.tick(due, period, due + period));
+        assert!(d.tick(due, period, due + Duration::from_millis(31)));
+        assert!(d.tick(due, period, due + Duration::from_millis(200)));
+        assert_eq!(d.deadline_overruns, 2);
+        assert_eq!(d.hold_overruns, 0);
+    }
+
+    #[test]
+    fn a_command_overruns_its_hold_when_it_stays_in_force_longer() {
+        let mut d = Deadlines::default();
+        // Holds of 30 ms: in force 29, 30, 32.5 and 90 ms (two ticks without a reading).
+        assert_eq!(d.command(0.029, 0.030), 0.029 - 0.030);
+        assert_eq!(d.command(0.030, 0.030), 0.0);
+        assert!((d.command(0.0325, 0.030) - 0.0025).abs() < 1e-15);
+        assert!((d.command(0.090, 0.030) - 0.060).abs() < 1e-15);
+        // A longer hold computed for (a slow loop) covers a longer period.
+        assert!(d.command(0.045, 0.050) < 0.0);
+        assert_eq!(d.hold_overruns, 2);
+        assert!((d.longest_hold_excess - 0.060).abs() < 1e-15);
+        assert_eq!(d.longest_period, 0.090);
+        assert_eq!(d.deadline_overruns, 0);
+    }
 }

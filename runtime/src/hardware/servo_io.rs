@@ -96,6 +96,12 @@ pub enum StartError {
     /// The state could not be read.
     #[error("cannot read the servos' state: {0}")]
     State(#[source] BusError),
+    /// The bus check could not time its cycles (a clock that does not advance).
+    #[error("the {cycles} read+write cycles timed at the start gave no usable time")]
+    NoReading {
+        /// Cycles run.
+        cycles: usize,
+    },
     /// The measured state lies outside the model's domain (not finite, bent or stretched
     /// beyond what the model describes): a calibration or a robot file that does not fit.
     #[error(

@@ -1,5 +1,5 @@
 //! The live status line of `softcbf run` on a terminal: loop rate, lowest barrier, QP and
-//! bus fault counts, redrawn in place a few times a second from the rows the loop logs.
+//! bus fault counts, deadline overruns, redrawn a few times a second from the logged rows.
 //!
 //! It wraps the run's log ([`RunLog`]): every row goes to the log first, then updates the
 //! counts; drawing happens at most every [`REDRAW`] and only when standard error is a
@@ -19,6 +19,8 @@ pub const REDRAW: Duration = Duration::from_millis(250);
 const STATUS: usize = 1;
 /// Index of the `attempts` extra column (sync reads this tick).
 const ATTEMPTS: usize = 2;
+/// Index of the `overrun` extra column (1: a deadline overrun).
+const OVERRUN: usize = 8;
 
 /// Counts shown on the status line.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -35,6 +37,8 @@ pub struct StatusCounts {
     pub failed: u64,
     /// Ticks with a state outside the model (zero command).
     pub invalid: u64,
+    /// Ticks that ended more than a period after they were due.
+    pub overruns: u64,
     /// Lowest barrier read so far \[m\] (infinite before the first reading).
     pub lowest: f64,
     /// Loop rate over the last redraw interval \[Hz\].
@@ -65,6 +69,9 @@ impl StatusCounts {
         if attempts > 1.0 {
             self.retries += attempts as u64 - 1;
         }
+        if row.extra.get(OVERRUN).copied() == Some(1.0) {
+            self.overruns += 1;
+        }
         for &b in row.b {
             // NaN (no reading) never lowers the minimum.
             if b < self.lowest {
@@ -74,7 +81,7 @@ impl StatusCounts {
     }
 
     /// The line, e.g. `t 12.3 s  33.0 Hz  lowest barrier +1.234 mm  QP: 0 relaxed, 0 failed,
-    /// 0 invalid  bus: 2 held, 1 retries`.
+    /// 0 invalid  bus: 2 held, 1 retries  overruns: 0`.
     pub fn line(&self, t: f64) -> String {
         let lowest = if self.lowest.is_finite() {
             format!("{:+.3} mm", self.lowest * 1e3)
@@ -83,8 +90,14 @@ impl StatusCounts {
         };
         format!(
             "t {t:.1} s  {:.1} Hz  lowest barrier {lowest}  QP: {} relaxed, {} failed, {} \
-             invalid  bus: {} held, {} retries",
-            self.rate, self.relaxed, self.failed, self.invalid, self.held, self.retries
+             invalid  bus: {} held, {} retries  overruns: {}",
+            self.rate,
+            self.relaxed,
+            self.failed,
+            self.invalid,
+            self.held,
+            self.retries,
+            self.overruns
         )
     }
 }
@@ -166,31 +179,30 @@ mod tests {
     use crate::hardware::log::extra_columns;
 
     #[test]
-    fn the_columns_read_are_the_status_and_the_attempts() {
+    fn the_columns_read_are_the_status_the_attempts_and_the_overrun() {
         let names = extra_columns(6, &crate::record::coordinate_names(6));
-        assert!(names[STATUS].starts_with("status"), "{}", names[STATUS]);
-        assert!(
-            names[ATTEMPTS].starts_with("attempts"),
-            "{}",
-            names[ATTEMPTS]
-        );
+        assert_eq!(names[STATUS], "status");
+        assert_eq!(names[ATTEMPTS], "attempts");
+        assert_eq!(names[OVERRUN], "overrun");
     }
 
     #[test]
     fn rows_are_counted_by_status_attempts_and_barriers() {
         let mut counts = StatusCounts::new();
         let q = [0.0; 3];
-        let mut extra = [0.0; 4];
+        let mut extra = [0.0; 9];
+        // (status, attempts, overrun, barrier)
         let rows = [
-            (-1.0, 3.0, f64::NAN),
-            (1.0, 1.0, 0.004),
-            (2.0, 2.0, -0.001),
-            (3.0, 1.0, 0.002),
-            (4.0, 1.0, 0.003),
+            (-1.0, 3.0, 1.0, f64::NAN),
+            (1.0, 1.0, 0.0, 0.004),
+            (2.0, 2.0, 1.0, -0.001),
+            (3.0, 1.0, 0.0, 0.002),
+            (4.0, 1.0, 0.0, 0.003),
         ];
-        for (status, attempts, b) in rows {
+        for (status, attempts, overrun, b) in rows {
             extra[STATUS] = status;
             extra[ATTEMPTS] = attempts;
+            extra[OVERRUN] = overrun;
             counts.add(&Row {
                 t: 0.0,
                 q: &q,
@@ -207,10 +219,11 @@ mod tests {
             (1, 1, 1, 1)
         );
         assert_eq!(counts.retries, 3);
+        assert_eq!(counts.overruns, 2);
         assert_eq!(counts.lowest, -0.001);
         let line = counts.line(1.25);
         assert!(line.contains("lowest barrier -1.000 mm"), "{line}");
         assert!(line.contains("1 relaxed, 1 failed, 1 invalid"), "{line}");
-        assert!(line.contains("1 held, 3 retries"), "{line}");
+        assert!(line.contains("1 held, 3 retries  overruns: 2"), "{line}");
     }
 }
