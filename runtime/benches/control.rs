@@ -1,5 +1,6 @@
 //! Criterion benchmarks of the safe controller and the simulator (issue 4): one control
-//! tick of the paper robot (model, HOCBF rows, QP), and the paper's whole 10 s scenario.
+//! tick of the paper robot (model, HOCBF rows, QP), one tick of each safety mode at 33 Hz
+//! (issue 13), and the paper's whole 10 s scenario.
 //!
 //! The ticks are taken at the states of the paper scenario's filtered run (every 10th
 //! tick of 10 s), cycled, so the QP sees its real mix of active sets. Run with
@@ -10,7 +11,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use softcbf::cli::load_robot;
-use softcbf::control::{Controller, Reference, tick};
+use softcbf::control::{Controller, Reference, SafetyMode, tick};
 use softcbf::model::Model;
 use softcbf::scenario::{Scenario, ScenarioFile};
 use softcbf::sim::simulate;
@@ -87,5 +88,63 @@ fn bench_scenario(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_tick, bench_scenario);
+/// One tick at 33 Hz in each safety mode, at the states of a sampled run toward the paper's
+/// set point; `sampled_uncertain` on the paper robot declaring ±20 % (20 perturbed plants).
+fn bench_safety_modes(c: &mut Criterion) {
+    let (model, mut scenario) = paper();
+    let period = 1.0 / 33.0;
+    scenario.control_period = period;
+    scenario.tolerances.h_max = period;
+    scenario.controller.safety = SafetyMode::Sampled;
+    scenario.controller.hold = period;
+    let nq = model.nq();
+    let run = simulate(&model, &scenario, true, &mut |_| {}).expect("simulation");
+    let states: Vec<(Vec<f64>, Vec<f64>)> = (0..run.record.len())
+        .filter_map(|k| run.record.row(k))
+        .map(|row| (row.q.to_vec(), row.qd.to_vec()))
+        .collect();
+    let set_point = scenario.reference.final_target().to_vec();
+    let zero = vec![0.0; nq];
+    let mut uncertain = model.robot.clone();
+    uncertain.uncertainty = softcbf_description::uncertainty::Uncertainty {
+        stiffness: 0.2,
+        damping: 0.2,
+        mass: 0.2,
+        force: 0.0,
+    };
+    let uncertain = Model::new(uncertain).expect("paper model");
+    let mut group = c.benchmark_group("tick_33hz");
+    for (name, safety, model) in [
+        ("paper", SafetyMode::Paper, &model),
+        ("hold_correction", SafetyMode::HoldCorrection, &model),
+        ("sampled", SafetyMode::Sampled, &model),
+        ("sampled_uncertain", SafetyMode::Sampled, &uncertain),
+    ] {
+        let mut settings = scenario.controller.clone();
+        settings.safety = safety;
+        let mut controller = Controller::new(model, settings).expect("controller");
+        let mut k = 0;
+        group.bench_function(name, |bench| {
+            bench.iter(|| {
+                let (q, qd) = &states[k % states.len()];
+                k += 1;
+                let reference = Reference {
+                    q: &set_point,
+                    qd: &zero,
+                    qdd: &zero,
+                };
+                black_box(tick(
+                    model,
+                    &mut controller,
+                    black_box(q),
+                    black_box(qd),
+                    reference,
+                ))
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_tick, bench_safety_modes, bench_scenario);
 criterion_main!(benches);

@@ -157,10 +157,10 @@ fn run_with_hardware(
     Outcome { summary, log, bus }
 }
 
-/// The discretization tolerance of the example robot (tension limits in the filter's QP,
-/// hold correction on): measured minimum barrier −0.12e-3 to −0.25e-3 m (release build,
-/// 1 Mbit/s, 33 Hz; see docs/hardware.md; with the elongation limits, −0.12e-3 to
-/// −0.23e-3 m, on module 1's lower limit); the target is −1e-3 m.
+/// The tolerance on the example robot's lowest barrier (tension limits in the filter's QP,
+/// the sampled-data rows with the file's ±10 % margin): measured +6.7e-3 m (release build,
+/// 1 Mbit/s, 33 Hz); with the hold correction it was −0.12e-3 to −0.23e-3 m, on module 1's
+/// lower limit (docs/hardware.md); the hardware issue's target was −1e-3 m.
 const BARRIER_TOLERANCE: f64 = -1e-3;
 
 /// Without the hold correction (velocity from filtered differences): measured −0.4e-3 to
@@ -216,10 +216,11 @@ fn paper_set_point_barriers_held_against_the_emulator() {
     let min = min_barrier(&out.log);
     println!("minimum barrier {min:e}");
     assert!(min >= BARRIER_TOLERANCE, "minimum barrier {min}");
-    // ... and module 1 was compressed to its elongation limit δL_min + ε = −0.028 m (the
-    // set point's −0.04 m is not reached).
+    // ... and module 1 was compressed toward its elongation limit δL_min + ε = −0.028 m, but
+    // stopped short of it by the robust margin of the file's ±10 % (measured −0.0212 m;
+    // the set point's −0.04 m is not reached).
     let last = &out.log.rows.last().unwrap().1;
-    assert!(last[2] < -0.025 && last[2] > -0.03, "δL1 = {}", last[2]);
+    assert!(last[2] < -0.015 && last[2] > -0.028, "δL1 = {}", last[2]);
 }
 
 /// Every command sent in the loop was computed from a reading in which every servo's reply
@@ -384,7 +385,11 @@ fn late_readings_are_predicted_to_when_the_command_lands() {
         delay: Duration::from_millis(5),
         ..Faults::default()
     };
-    let out = run_against_emulator(faults, 2.0);
+    // Without the file's declared uncertainty: the robust margin stops the robot early, and
+    // the prediction is compared while the robot moves.
+    let mut robot = example();
+    robot.uncertainty = Default::default();
+    let out = run_with(robot, faults, 2.0, None);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);
     assert!(out.summary.max_age > 0.030, "age {}", out.summary.max_age);
@@ -419,7 +424,10 @@ fn late_readings_are_predicted_to_when_the_command_lands() {
     assert!(compared > 40, "{compared} commands compared");
     // The position resolution of the servos is 0.07 mm of tendon.
     assert!(rms(predicted_error) < 3e-4, "{:e}", rms(predicted_error));
-    assert!(rms(predicted_error) < 0.2 * rms(stale_error));
+    // The prediction's floor is the resolution; the reading's error is the motion over
+    // 33 ms, which the sampled rows keep smaller than the paper's did (measured: 1.2e-4 m
+    // against 5.8e-4 m; with the hold correction the ratio was below 0.2).
+    assert!(rms(predicted_error) < rms(stale_error) / 3.0);
 }
 
 #[test]

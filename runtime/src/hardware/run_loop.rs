@@ -14,9 +14,9 @@
 //! time after its request left, and is `age` seconds old when the command computed from it
 //! reaches them; the controller acts on the state predicted `age` seconds ahead by the
 //! model under the command then in force (`predict`). The command is held until the next
-//! one, for the period achieved over the last [`RATE_WINDOW`] commands (at least the
-//! nominal one): the hold correction, if the robot file asks for it, uses that period, and
-//! the HOCBF class-K gains are scaled by `nominal / achieved`, so that their product with
+//! one; the safety rows are computed for a hold of [`HOLD_ALLOWANCE`] times the longest of
+//! the last [`RATE_WINDOW`] intervals (at least the nominal period), and the HOCBF class-K
+//! gains are scaled by `nominal / achieved` (the mean of those intervals), so that their product with
 //! the hold, on which the sampled loop's behaviour depends, stays what it is at the
 //! nominal rate (smaller gains are also a stricter constraint). When the achieved rate
 //! falls below `min_rate`, the loop stops safely and says so. Every deadline is watched: a
@@ -73,6 +73,10 @@ pub fn prediction_tolerances() -> Tolerances {
 
 /// Commands over which the achieved rate and the hold period are measured.
 pub const RATE_WINDOW: usize = 8;
+
+/// The factor on the longest recent interval that gives the hold a command is computed for:
+/// a 10 % allowance for the loop's jitter.
+pub const HOLD_ALLOWANCE: f64 = 1.1;
 
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
@@ -469,14 +473,18 @@ fn control_loop<P: ServoPort>(
                     + compute_estimate
                     + write_wire;
                 timing.age = age;
-                // The period achieved lately (never less than the nominal one) is the hold
-                // of this command; the class-K gains keep their product with it, p·Δ, at
-                // what the file's gains give at the nominal period (smaller gains: a
-                // stricter constraint, and the sampled loop as stable as at full rate).
+                // The hold this command is computed for: the longest interval of the last
+                // few (never less than the nominal period), with an allowance for jitter,
+                // so that a command seldom stays in force longer than the sampled-data rows
+                // looked ahead (docs/model.md §5). The class-K gains keep their product
+                // with the mean period achieved, p·Δ, at what the file's gains give at the
+                // nominal period (smaller gains: a stricter constraint, and the sampled
+                // loop as stable as at full rate).
                 let achieved = ws.intervals.iter().sum::<f64>() / RATE_WINDOW as f64;
-                let hold = achieved.max(nominal);
+                let longest = ws.intervals.iter().fold(nominal, |m, &v| m.max(v));
+                let hold = longest * HOLD_ALLOWANCE;
                 timing.hold = hold;
-                timing.gain_scale = nominal / hold;
+                timing.gain_scale = nominal / achieved.max(nominal);
                 controller.set_barrier_gain_scale(timing.gain_scale);
                 controller.set_hold(hold);
                 ws.q_used.copy_from_slice(&ws.q);
