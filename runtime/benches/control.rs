@@ -9,7 +9,8 @@
 
 use std::hint::black_box;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use softcbf::cli::load_robot;
 use softcbf::control::{Controller, Reference, SafetyMode, tick};
 use softcbf::model::Model;
@@ -26,7 +27,6 @@ fn paper() -> (Model, Scenario) {
 
 fn bench_tick(c: &mut Criterion) {
     let (model, scenario) = paper();
-    let nq = model.nq();
     let run = simulate(&model, &scenario, true, &mut |_| {}).expect("simulation");
     let states: Vec<(Vec<f64>, Vec<f64>)> = (0..run.record.len())
         .step_by(10)
@@ -34,33 +34,46 @@ fn bench_tick(c: &mut Criterion) {
         .map(|row| (row.q.to_vec(), row.qd.to_vec()))
         .collect();
     let set_point = scenario.reference.final_target().to_vec();
-    let zero = vec![0.0; nq];
     let mut group = c.benchmark_group("control_tick");
     for (name, filter) in [("filter", true), ("pd_only", false)] {
         let mut settings = scenario.controller.clone();
         settings.filter = filter;
-        let mut controller = Controller::new(&model, settings).expect("controller");
-        let mut k = 0;
-        group.bench_function(name, |bench| {
-            bench.iter(|| {
-                let (q, qd) = &states[k % states.len()];
-                k += 1;
-                let reference = Reference {
-                    q: &set_point,
-                    qd: &zero,
-                    qdd: &zero,
-                };
-                black_box(tick(
-                    &model,
-                    &mut controller,
-                    black_box(q),
-                    black_box(qd),
-                    reference,
-                ))
-            })
-        });
+        let controller = Controller::new(&model, settings).expect("controller");
+        bench_cycle(&mut group, name, &model, controller, &states, &set_point);
     }
     group.finish();
+}
+
+/// Benchmarks `name`: one tick of `controller` per iteration, cycling through `states`
+/// toward the set point `set_point`.
+fn bench_cycle(
+    group: &mut BenchmarkGroup<'_, WallTime>,
+    name: &str,
+    model: &Model,
+    mut controller: Controller,
+    states: &[(Vec<f64>, Vec<f64>)],
+    set_point: &[f64],
+) {
+    let zero = vec![0.0; model.nq()];
+    let mut k = 0;
+    group.bench_function(name, |bench| {
+        bench.iter(|| {
+            let (q, qd) = &states[k % states.len()];
+            k += 1;
+            let reference = Reference {
+                q: set_point,
+                qd: &zero,
+                qdd: &zero,
+            };
+            black_box(tick(
+                model,
+                &mut controller,
+                black_box(q),
+                black_box(qd),
+                reference,
+            ))
+        })
+    });
 }
 
 fn bench_scenario(c: &mut Criterion) {
@@ -97,14 +110,12 @@ fn bench_safety_modes(c: &mut Criterion) {
     scenario.tolerances.h_max = period;
     scenario.controller.safety = SafetyMode::Sampled;
     scenario.controller.hold = period;
-    let nq = model.nq();
     let run = simulate(&model, &scenario, true, &mut |_| {}).expect("simulation");
     let states: Vec<(Vec<f64>, Vec<f64>)> = (0..run.record.len())
         .filter_map(|k| run.record.row(k))
         .map(|row| (row.q.to_vec(), row.qd.to_vec()))
         .collect();
     let set_point = scenario.reference.final_target().to_vec();
-    let zero = vec![0.0; nq];
     let mut uncertain = model.robot.clone();
     uncertain.uncertainty = softcbf_description::uncertainty::Uncertainty {
         stiffness: 0.2,
@@ -122,26 +133,8 @@ fn bench_safety_modes(c: &mut Criterion) {
     ] {
         let mut settings = scenario.controller.clone();
         settings.safety = safety;
-        let mut controller = Controller::new(model, settings).expect("controller");
-        let mut k = 0;
-        group.bench_function(name, |bench| {
-            bench.iter(|| {
-                let (q, qd) = &states[k % states.len()];
-                k += 1;
-                let reference = Reference {
-                    q: &set_point,
-                    qd: &zero,
-                    qdd: &zero,
-                };
-                black_box(tick(
-                    model,
-                    &mut controller,
-                    black_box(q),
-                    black_box(qd),
-                    reference,
-                ))
-            })
-        });
+        let controller = Controller::new(model, settings).expect("controller");
+        bench_cycle(&mut group, name, model, controller, &states, &set_point);
     }
     group.finish();
 }

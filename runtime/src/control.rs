@@ -9,6 +9,13 @@
 //! (J M⁻¹) τ ≥ J M⁻¹ n − J̇ q̇ − (p1 + p2) J q̇ − p1 p2 b
 //! ```
 //!
+//! That is the paper's row ([`SafetyMode::Paper`]); [`SafetyMode::HoldCorrection`] takes
+//! the acceleration of an implicit Euler step over the hold instead, and
+//! [`SafetyMode::Sampled`] (the default of scenarios and hardware runs) replaces the rows by
+//! the barriers at samples of the whole hold, predicted for the command being chosen
+//! ([`crate::hold`]), with a robust margin for a robot's declared uncertainty
+//! (docs/model.md §5).
+//!
 //! The tick is a pure function of (model, controller workspace, state, reference): it reads
 //! no clock, touches no port and prints nothing, so simulation and hardware share it.
 

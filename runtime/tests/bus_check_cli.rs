@@ -5,72 +5,24 @@
 //!
 //! The emulator steps its plant in real time: run optimized (`cargo test --release`).
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+mod common;
+
+use std::io::Read;
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::thread;
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_softcbf");
+use common::*;
 
 /// One emulator and its runs at a time: the bus check measures the machine's timing.
 static SERIAL: Mutex<()> = Mutex::new(());
 
 /// A set point inside the safe set: these runs are about the bus, not about barriers.
-const INSIDE: &str = "0,0,-0.02,0,0,-0.01";
 
 /// `--rate auto` runs at this fraction of the rate the bus allows (the documented margin).
 const AUTO_MARGIN: f64 = 0.8;
-
-fn robot() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/hardware-example.toml")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("softcbf-bus-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// `softcbf emulate` in the background, stopped with SIGTERM when dropped.
-struct Emulator {
-    child: Child,
-    port: String,
-}
-
-impl Emulator {
-    fn start(extra: &[&str]) -> Emulator {
-        let mut child = Command::new(BIN)
-            .arg("emulate")
-            .arg("--robot")
-            .arg(robot())
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("softcbf emulate starts");
-        let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-        let port = lines
-            .by_ref()
-            .map_while(Result::ok)
-            .find_map(|l| l.strip_prefix("port: ").map(str::to_string))
-            .expect("the emulator announces its port");
-        // Keep draining its output so it never blocks on a full pipe.
-        thread::spawn(move || for _ in lines {});
-        Emulator { child, port }
-    }
-}
-
-impl Drop for Emulator {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .arg(self.child.id().to_string())
-            .status();
-        let _ = self.child.wait();
-    }
-}
 
 /// Runs `softcbf run` against `port` to its end (at most 60 s): exit code, stdout, stderr.
 fn run(port: &str, out: &Path, extra: &[&str]) -> (i32, String, String) {
@@ -122,60 +74,10 @@ fn number_after(text: &str, prefix: &str) -> f64 {
         .unwrap_or_else(|| panic!("no number after `{prefix}` in:\n{text}"))
 }
 
-// An independent Protocol 2.0 read (e-Manual "Protocol 2.0"): CRC-16, polynomial 0x8005,
-// initial value 0, most significant bit first.
-fn crc(bytes: &[u8]) -> u16 {
-    bytes.iter().fold(0u16, |mut crc, &byte| {
-        crc ^= u16::from(byte) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 {
-                (crc << 1) ^ 0x8005
-            } else {
-                crc << 1
-            };
-        }
-        crc
-    })
-}
-
-/// Torque Enable (address 64) of servo `id`, read over `path` (a few tries).
-fn torque_enable(path: &str, id: u8) -> u8 {
-    let mut port = serialport::new(path, 1_000_000)
-        .timeout(Duration::from_millis(5))
-        .open()
-        .unwrap();
-    let mut request = vec![0xFF, 0xFF, 0xFD, 0x00, id, 7, 0, 0x02, 64, 0, 1, 0];
-    let c = crc(&request);
-    request.extend_from_slice(&c.to_le_bytes());
-    for _ in 0..5 {
-        let _ = port.clear(serialport::ClearBuffer::Input);
-        port.write_all(&request).unwrap();
-        let mut reply = Vec::new();
-        let deadline = Instant::now() + Duration::from_millis(300);
-        while Instant::now() < deadline && reply.len() < 12 {
-            let mut buf = [0u8; 64];
-            if let Ok(n) = port.read(&mut buf) {
-                reply.extend_from_slice(&buf[..n]);
-            }
-        }
-        // Header, ID, length 5, status 0x55, no error, one byte, a valid CRC.
-        if reply.len() >= 12
-            && reply[..4] == [0xFF, 0xFF, 0xFD, 0x00]
-            && reply[4] == id
-            && reply[7] == 0x55
-            && reply[8] == 0
-            && crc(&reply[..10]) == u16::from_le_bytes([reply[10], reply[11]])
-        {
-            return reply[9];
-        }
-    }
-    panic!("servo {id} did not answer a read of Torque Enable");
-}
-
 fn assert_torque_never_on(emulator: &Emulator, what: &str) {
     for id in 1..=6 {
         assert_eq!(
-            torque_enable(&emulator.port, id),
+            read_register(&emulator.port, id, TORQUE_ENABLE, 1)[0],
             0,
             "{what}: servo {id} has torque on"
         );

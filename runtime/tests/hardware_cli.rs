@@ -6,29 +6,20 @@
 //!
 //! The emulator steps its plant in real time: run optimized (`cargo test --release`).
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::Mutex;
-use std::sync::mpsc::{Receiver, channel};
-use std::thread;
-use std::time::{Duration, Instant};
+mod common;
 
-const BIN: &str = env!("CARGO_BIN_EXE_softcbf");
+use std::io::{Read, Write};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::Mutex;
+use std::sync::mpsc::Receiver;
+use std::thread;
+use std::time::Duration;
+
+use common::*;
 
 /// One emulator and its runs at a time: the loop's timing is part of what is checked.
 static SERIAL: Mutex<()> = Mutex::new(());
-
-fn robot() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/hardware-example.toml")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("softcbf-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// Sends `signal` (a name such as `HUP`) to `child`.
 fn kill(child: &Child, signal: &str) {
@@ -38,96 +29,6 @@ fn kill(child: &Child, signal: &str) {
         .status()
         .expect("the kill command");
     assert!(status.success(), "kill -{signal} failed");
-}
-
-/// Waits at most `limit` for `child`; kills it (and fails) beyond.
-fn wait_for(child: &mut Child, limit: Duration, what: &str) -> ExitStatus {
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            return status;
-        }
-        if start.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("{what}: still running after {limit:?}");
-        }
-        thread::sleep(Duration::from_millis(20));
-    }
-}
-
-/// Lines of a child's output, read by a thread.
-fn lines_of(stream: impl Read + Send + 'static) -> Receiver<String> {
-    let (tx, rx) = channel();
-    thread::spawn(move || {
-        for line in BufReader::new(stream).lines() {
-            let Ok(line) = line else { break };
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    rx
-}
-
-/// Collects lines until one contains `needle` (or `limit` passes); returns all so far.
-fn until(lines: &Receiver<String>, needle: &str, limit: Duration) -> Vec<String> {
-    let deadline = Instant::now() + limit;
-    let mut seen = Vec::new();
-    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
-        match lines.recv_timeout(left) {
-            Ok(line) => {
-                let done = line.contains(needle);
-                seen.push(line);
-                if done {
-                    break;
-                }
-            }
-            Err(_) => break,
-        }
-    }
-    seen
-}
-
-/// `softcbf emulate` in the background, stopped with SIGTERM when dropped.
-struct Emulator {
-    child: Child,
-    port: String,
-}
-
-impl Emulator {
-    fn start(extra: &[&str]) -> Emulator {
-        let mut child = Command::new(BIN)
-            .arg("emulate")
-            .arg("--robot")
-            .arg(robot())
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("softcbf emulate starts");
-        let lines = lines_of(child.stdout.take().unwrap());
-        let seen = until(&lines, "port:", Duration::from_secs(60));
-        let port = seen
-            .iter()
-            .find_map(|l| l.strip_prefix("port: "))
-            .unwrap_or_else(|| panic!("no port announced: {seen:?}"))
-            .to_string();
-        // Keep draining its output so it never blocks on a full pipe.
-        thread::spawn(move || for _ in lines {});
-        Emulator { child, port }
-    }
-}
-
-impl Drop for Emulator {
-    fn drop(&mut self) {
-        if matches!(self.child.try_wait(), Ok(None)) {
-            let _ = Command::new("kill")
-                .arg(self.child.id().to_string())
-                .status();
-            let _ = wait_for(&mut self.child, Duration::from_secs(10), "emulator");
-        }
-    }
 }
 
 /// Reads ten bytes of a child's standard output and closes it, as `| head -c 10` does.
@@ -177,78 +78,6 @@ fn finish_run(mut run: RunProcess, what: &str) -> (i32, String, String) {
     (status.code().unwrap_or(-1), stdout, stderr)
 }
 
-// ---------------------------------------------------------------------------------------
-// An independent Protocol 2.0 reader (e-Manual "Protocol 2.0"): CRC-16 with polynomial
-// 0x8005, initial value 0, most significant bit first, over the packet up to the CRC.
-
-fn crc(bytes: &[u8]) -> u16 {
-    let mut crc: u16 = 0;
-    for &byte in bytes {
-        crc ^= u16::from(byte) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 {
-                (crc << 1) ^ 0x8005
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
-}
-
-/// A READ instruction packet for `len` bytes at `address` of servo `id` (no stuffing is
-/// needed: no parameter here contains FF FF FD).
-fn read_packet(id: u8, address: u16, len: u16) -> Vec<u8> {
-    let mut p = vec![0xFF, 0xFF, 0xFD, 0x00, id, 7, 0, 0x02];
-    p.extend_from_slice(&address.to_le_bytes());
-    p.extend_from_slice(&len.to_le_bytes());
-    let c = crc(&p);
-    p.extend_from_slice(&c.to_le_bytes());
-    p
-}
-
-/// Reads `len` bytes at `address` of servo `id` over the port at `path`, trying a few times.
-fn read_register(path: &str, id: u8, address: u16, len: u16) -> Vec<u8> {
-    let mut port = serialport::new(path, 1_000_000)
-        .timeout(Duration::from_millis(5))
-        .open()
-        .unwrap_or_else(|e| panic!("the reader cannot open {path}: {e}"));
-    for _ in 0..5 {
-        let _ = port.clear(serialport::ClearBuffer::Input);
-        port.write_all(&read_packet(id, address, len)).unwrap();
-        let want = 11 + usize::from(len);
-        let mut reply = Vec::new();
-        let deadline = Instant::now() + Duration::from_millis(300);
-        while Instant::now() < deadline {
-            let mut buf = [0u8; 64];
-            match port.read(&mut buf) {
-                Ok(n) => reply.extend_from_slice(&buf[..n]),
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(e) => panic!("reader: {e}"),
-            }
-            if let Some(start) = reply.windows(4).position(|w| w == [0xFF, 0xFF, 0xFD, 0x00])
-                && reply.len() >= start + want
-            {
-                let p = &reply[start..start + want];
-                let ok = p[4] == id
-                    && p[7] == 0x55
-                    && p[8] & 0x7F == 0
-                    && crc(&p[..want - 2]) == u16::from_le_bytes([p[want - 2], p[want - 1]]);
-                if ok {
-                    return p[9..9 + usize::from(len)].to_vec();
-                }
-                break;
-            }
-        }
-    }
-    panic!("servo {id} did not answer a read of {len} bytes at {address}");
-}
-
-const TORQUE_ENABLE: u16 = 64;
-const BUS_WATCHDOG: u16 = 98;
-const GOAL_CURRENT: u16 = 102;
-const PRESENT_CURRENT: u16 = 126;
-
 /// Torque Enable and Goal Current of servos 1..=6, read independently.
 fn assert_torque_off(port: &str, what: &str) {
     for id in 1..=6 {
@@ -286,7 +115,6 @@ fn whole_rows(path: &Path, last_may_be_cut: bool) -> usize {
 }
 
 /// A set point inside the safe set: these runs are about stopping, not about barriers.
-const INSIDE: &str = "0,0,-0.02,0,0,-0.01";
 
 #[test]
 fn every_terminating_signal_ends_in_the_safe_stop_with_a_whole_log() {

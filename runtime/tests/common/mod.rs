@@ -1,0 +1,196 @@
+//! What the end-to-end tests of the `softcbf` binary share: the binary, the hardware
+//! example, temporary folders, `softcbf emulate` in the background, and an independent
+//! Protocol 2.0 reader (its own packets and CRC, written from the e-Manual).
+// Each test binary uses part of this module.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc::{Receiver, channel};
+use std::thread;
+use std::time::{Duration, Instant};
+
+/// The `softcbf` binary under test.
+pub const BIN: &str = env!("CARGO_BIN_EXE_softcbf");
+
+/// `robots/hardware-example.toml` of the checkout.
+pub fn robot() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/hardware-example.toml")
+}
+
+/// A fresh folder `name` under the system's temporary folder, for this process.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("softcbf-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Waits at most `limit` for `child`; kills it (and fails) beyond.
+pub fn wait_for(child: &mut Child, limit: Duration, what: &str) -> ExitStatus {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{what}: still running after {limit:?}");
+        }
+        thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Lines of a child's output, read by a thread.
+pub fn lines_of(stream: impl Read + Send + 'static) -> Receiver<String> {
+    let (tx, rx) = channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stream).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// Collects lines until one contains `needle` (or `limit` passes); returns all so far.
+pub fn until(lines: &Receiver<String>, needle: &str, limit: Duration) -> Vec<String> {
+    let deadline = Instant::now() + limit;
+    let mut seen = Vec::new();
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        match lines.recv_timeout(left) {
+            Ok(line) => {
+                let done = line.contains(needle);
+                seen.push(line);
+                if done {
+                    break;
+                }
+            }
+            Err(_) => break,
+        }
+    }
+    seen
+}
+
+/// `softcbf emulate` in the background, stopped with SIGTERM when dropped.
+pub struct Emulator {
+    /// Its process.
+    pub child: Child,
+    /// The pseudo-terminal it serves.
+    pub port: String,
+}
+
+impl Emulator {
+    /// Starts one for the hardware example with `extra` options.
+    pub fn start(extra: &[&str]) -> Emulator {
+        let mut child = Command::new(BIN)
+            .arg("emulate")
+            .arg("--robot")
+            .arg(robot())
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("softcbf emulate starts");
+        let lines = lines_of(child.stdout.take().unwrap());
+        let seen = until(&lines, "port:", Duration::from_secs(60));
+        let port = seen
+            .iter()
+            .find_map(|l| l.strip_prefix("port: "))
+            .unwrap_or_else(|| panic!("no port announced: {seen:?}"))
+            .to_string();
+        // Keep draining its output so it never blocks on a full pipe.
+        thread::spawn(move || for _ in lines {});
+        Emulator { child, port }
+    }
+}
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            let _ = Command::new("kill")
+                .arg(self.child.id().to_string())
+                .status();
+            let _ = wait_for(&mut self.child, Duration::from_secs(10), "emulator");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// An independent Protocol 2.0 reader (e-Manual "Protocol 2.0"): CRC-16 with polynomial
+// 0x8005, initial value 0, most significant bit first, over the packet up to the CRC.
+
+pub fn crc(bytes: &[u8]) -> u16 {
+    let mut crc: u16 = 0;
+    for &byte in bytes {
+        crc ^= u16::from(byte) << 8;
+        for _ in 0..8 {
+            crc = if crc & 0x8000 != 0 {
+                (crc << 1) ^ 0x8005
+            } else {
+                crc << 1
+            };
+        }
+    }
+    crc
+}
+
+/// A READ instruction packet for `len` bytes at `address` of servo `id` (no stuffing is
+/// needed: no parameter here contains FF FF FD).
+pub fn read_packet(id: u8, address: u16, len: u16) -> Vec<u8> {
+    let mut p = vec![0xFF, 0xFF, 0xFD, 0x00, id, 7, 0, 0x02];
+    p.extend_from_slice(&address.to_le_bytes());
+    p.extend_from_slice(&len.to_le_bytes());
+    let c = crc(&p);
+    p.extend_from_slice(&c.to_le_bytes());
+    p
+}
+
+/// Reads `len` bytes at `address` of servo `id` over the port at `path`, trying a few times.
+pub fn read_register(path: &str, id: u8, address: u16, len: u16) -> Vec<u8> {
+    let mut port = serialport::new(path, 1_000_000)
+        .timeout(Duration::from_millis(5))
+        .open()
+        .unwrap_or_else(|e| panic!("the reader cannot open {path}: {e}"));
+    for _ in 0..5 {
+        let _ = port.clear(serialport::ClearBuffer::Input);
+        port.write_all(&read_packet(id, address, len)).unwrap();
+        let want = 11 + usize::from(len);
+        let mut reply = Vec::new();
+        let deadline = Instant::now() + Duration::from_millis(300);
+        while Instant::now() < deadline {
+            let mut buf = [0u8; 64];
+            match port.read(&mut buf) {
+                Ok(n) => reply.extend_from_slice(&buf[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => panic!("reader: {e}"),
+            }
+            if let Some(start) = reply.windows(4).position(|w| w == [0xFF, 0xFF, 0xFD, 0x00])
+                && reply.len() >= start + want
+            {
+                let p = &reply[start..start + want];
+                let ok = p[4] == id
+                    && p[7] == 0x55
+                    && p[8] & 0x7F == 0
+                    && crc(&p[..want - 2]) == u16::from_le_bytes([p[want - 2], p[want - 1]]);
+                if ok {
+                    return p[9..9 + usize::from(len)].to_vec();
+                }
+                break;
+            }
+        }
+    }
+    panic!("servo {id} did not answer a read of {len} bytes at {address}");
+}
+
+pub const TORQUE_ENABLE: u16 = 64;
+pub const BUS_WATCHDOG: u16 = 98;
+pub const GOAL_CURRENT: u16 = 102;
+pub const PRESENT_CURRENT: u16 = 126;
+
+/// A set point inside the safe set, for runs about the bus and the stop, not the barriers.
+pub const INSIDE: &str = "0,0,-0.02,0,0,-0.01";
