@@ -10,6 +10,7 @@ use softcbf_description::limits;
 use softcbf_description::robot::Robot;
 
 use crate::cli::{check_number, parse_coordinates};
+use crate::control::SafetyMode;
 use crate::exit;
 use crate::hardware::bus_check::{self, BusTiming, LatencyTimer, RateChoice, RateRule};
 use crate::hardware::description::{self, Hardware};
@@ -105,6 +106,11 @@ pub struct RunArgs {
     /// (default: 33, the paper's). A rate the bus cannot hold is refused at the start.
     #[arg(long, allow_hyphen_values = true)]
     pub rate: Option<String>,
+    /// How the filter keeps the barriers between ticks: `sampled`, `paper` or
+    /// `hold-correction` (default: the robot file's `[hardware] safety`, else `sampled`;
+    /// docs/model.md §5).
+    #[arg(long, value_name = "MODE", value_parser = SafetyMode::parse)]
+    pub safety: Option<SafetyMode>,
     /// Lowest rate the loop may fall to (a slow bus) before it stops safely (Hz)
     /// (default: half of the loop rate; with --rate auto at most 16.5 Hz).
     #[arg(long, allow_negative_numbers = true)]
@@ -336,6 +342,9 @@ pub fn run_settings(
 ) -> Result<(RunSettings, f64), String> {
     if let Some(baud) = args.baud {
         hardware.baud = servo::check_baud(baud).map_err(|m| format!("--baud: {m}"))?;
+    }
+    if args.safety.is_some() {
+        hardware.safety = args.safety;
     }
     if let Some(n) = args.max_errors {
         hardware.max_consecutive_errors = servo::MAX_CONSECUTIVE_ERRORS
@@ -595,7 +604,9 @@ pub fn run_settings_report(
     };
     let (reference_source, hold_source) = (
         given(args.set_point.is_some()),
-        if hardware.safety.is_some() {
+        if args.safety.is_some() {
+            Source::CommandLine
+        } else if hardware.safety.is_some() {
             Source::RobotFile
         } else {
             Source::BuiltIn
@@ -794,7 +805,6 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::SafetyMode;
     use clap::Parser;
 
     #[derive(Parser)]
@@ -835,8 +845,22 @@ mod tests {
             Sourced::new(SafetyMode::Sampled, Source::RobotFile)
         );
 
-        let (settings, report) =
-            settings_of(&["--p", "15", "--kp", "8", "--rate", "20", "--no-filter"]).unwrap();
+        let (settings, report) = settings_of(&[
+            "--p",
+            "15",
+            "--kp",
+            "8",
+            "--rate",
+            "20",
+            "--no-filter",
+            "--safety",
+            "paper",
+        ])
+        .unwrap();
+        assert_eq!(
+            report.safety,
+            Sourced::new(SafetyMode::Paper, Source::CommandLine)
+        );
         let gains = settings.gains.unwrap();
         assert_eq!(gains.p1, Sourced::new(15.0, Source::CommandLine));
         assert_eq!(gains.p2, Sourced::new(15.0, Source::CommandLine));
