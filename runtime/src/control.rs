@@ -359,6 +359,9 @@ pub struct Controller {
     barrier_rows: usize,
     /// Workspace of the sampled-data rows ([`SafetyMode::Sampled`] only).
     sampled: Option<SampledWorkspace>,
+    /// How long before the tick the state was read when it was predicted to the tick by the
+    /// model \[s\]: the robust margin covers the mismatch over it too.
+    margin_age: f64,
 }
 
 /// What the sampled-data rows need besides the controller's own buffers.
@@ -504,12 +507,14 @@ fn robust_error(reason: String) -> ControllerError {
 /// the extra approach `−J_k (e_v(t_j) − e(t_j))` of every barrier row (and
 /// `−J_k (ė_v + p1 e_v − ė − p1 e)` at the end of the hold) on the plant with that number
 /// off, the worse sign taken and the numbers summed; plus the unmodelled force's
-/// `F Σ_i |(J_k Γ_j)_i|`. The deviations are those of the linearized dynamics (docs/model.md §5).
+/// `F Σ_i |(J_k Γ_j)_i|`. The deviations are those of the linearized dynamics
+/// (docs/model.md §5), over `horizon`: the hold, plus the age of a state predicted from an
+/// older reading ([`Controller::set_margin_age`]), sampled like the hold.
 #[allow(clippy::too_many_arguments)]
 fn robust_margin(
     model: &Model,
     robust: &mut RobustMargin,
-    nominal: &HoldPrediction,
+    horizon: f64,
     nominal_stiffness: &[f64],
     nominal_offset: &[f64],
     inverse_mass: &[f64],
@@ -522,7 +527,14 @@ fn robust_margin(
 ) -> bool {
     let nq = q.len();
     let nb = jacobian.len() / nq.max(1);
-    let m = nominal.samples();
+    let m = robust.prediction.samples();
+    // The nominal plant over the horizon, the same way as the perturbed ones below.
+    if !robust
+        .prediction
+        .predict(inverse_mass, nominal_stiffness, &model.damping, qd, horizon)
+    {
+        return false;
+    }
     for (u, (t, g)) in robust
         .forcing
         .iter_mut()
@@ -531,14 +543,35 @@ fn robust_margin(
         *u = t - g;
     }
     for j in 0..m {
-        nominal.excursion(
+        robust.prediction.excursion(
             j,
             &robust.forcing,
             &mut robust.nominal[j * nq..(j + 1) * nq],
         );
     }
-    end_velocity(nominal, &robust.forcing, &mut robust.nominal_velocity);
+    end_velocity(
+        &robust.prediction,
+        &robust.forcing,
+        &mut robust.nominal_velocity,
+    );
     robust.margin.fill(0.0);
+    if robust.force > 0.0 {
+        for j in 0..m {
+            let forced = robust.prediction.forced(j);
+            for k in 0..nb {
+                let row = &jacobian[k * nq..(k + 1) * nq];
+                let reach: f64 = (0..nq)
+                    .map(|c| {
+                        (0..nq)
+                            .map(|i| row[i] * forced[i * nq + c])
+                            .sum::<f64>()
+                            .abs()
+                    })
+                    .sum();
+                robust.margin[j * nb + k] += robust.force * reach;
+            }
+        }
+    }
     for v in 0..robust.perturbations.len() {
         // Stiffness, damping, mass inverse and offset of the perturbed plant.
         robust.stiffness.copy_from_slice(nominal_stiffness);
@@ -588,7 +621,7 @@ fn robust_margin(
             &robust.stiffness,
             &robust.damping,
             qd,
-            nominal.time(m - 1),
+            horizon,
         ) {
             return false;
         }
@@ -640,23 +673,6 @@ fn robust_margin(
                 if sign_pair {
                     robust.margin[r] += robust.worst[r].max(0.0);
                 }
-            }
-        }
-    }
-    if robust.force > 0.0 {
-        for j in 0..m {
-            let forced = nominal.forced(j);
-            for k in 0..nb {
-                let row = &jacobian[k * nq..(k + 1) * nq];
-                let reach: f64 = (0..nq)
-                    .map(|c| {
-                        (0..nq)
-                            .map(|i| row[i] * forced[i * nq + c])
-                            .sum::<f64>()
-                            .abs()
-                    })
-                    .sum();
-                robust.margin[j * nb + k] += robust.force * reach;
             }
         }
     }
@@ -765,6 +781,7 @@ impl Controller {
             gain_scale: 1.0,
             barrier_rows,
             sampled,
+            margin_age: 0.0,
         })
     }
 
@@ -803,6 +820,18 @@ impl Controller {
         let valid = hold.is_finite() && hold > 0.0;
         if valid {
             self.settings.hold = hold;
+        }
+        valid
+    }
+
+    /// Tells the robust margin that the state of the next ticks was predicted by the model
+    /// from a reading `age` seconds old (a hardware loop's latency): the margin then covers
+    /// the plant's deviation over `age` plus the hold. `0` (the default) for a state read at
+    /// the tick. A value that is not finite and ≥ 0 is refused (`false`).
+    pub fn set_margin_age(&mut self, age: f64) -> bool {
+        let valid = age.is_finite() && age >= 0.0;
+        if valid {
+            self.margin_age = age;
         }
         valid
     }
@@ -1137,7 +1166,7 @@ fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f
             let computed = robust_margin(
                 model,
                 robust,
-                &sampled.prediction,
+                controller.settings.hold + controller.margin_age,
                 &sampled.stiffness,
                 &sampled.offset,
                 &controller.inverse_mass,

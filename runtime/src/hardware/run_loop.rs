@@ -487,6 +487,9 @@ fn control_loop<P: ServoPort>(
                 timing.gain_scale = nominal / achieved.max(nominal);
                 controller.set_barrier_gain_scale(timing.gain_scale);
                 controller.set_hold(hold);
+                // The state is predicted from a reading `age` old by the model: the robust
+                // margin of a declared uncertainty covers the plant's deviation over it too.
+                controller.set_margin_age(age);
                 ws.q_used.copy_from_slice(&ws.q);
                 ws.qd_used.copy_from_slice(&ws.qd);
                 if settings.predict && !predict(model, ws, age) {
