@@ -20,7 +20,7 @@
 
 use crate::linalg::MatrixExponential;
 
-/// The excursion over one hold at `m` evenly spaced samples, affine in the held command.
+/// The excursion over one hold at its early and even samples, affine in the held command.
 /// Preallocated for one `nq` and `m`; [`HoldPrediction::predict`] allocates nothing.
 pub struct HoldPrediction {
     nq: usize,
