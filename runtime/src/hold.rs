@@ -104,7 +104,7 @@ impl HoldPrediction {
             && stiffness.len() == nq * nq
             && damping.len() == nq
             && velocity.len() == nq;
-        if !sizes || !(hold.is_finite() && hold > 0.0) {
+        if !(sizes && hold.is_finite() && hold > 0.0) {
             return false;
         }
         self.hold = hold;

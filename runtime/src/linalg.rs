@@ -135,66 +135,6 @@ pub fn lu_solve(lu: &[f64], n: usize, piv: &[usize], b: &mut [f64], tmp: &mut [f
     b[..n].copy_from_slice(&tmp[..n]);
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn factorizations_solve_a_known_system() {
-        // A = B Bᵀ + I with B fixed: SPD; solution chosen, right side computed by product.
-        let n = 4;
-        let bm = [
-            1.0, 2.0, 0.0, -1.0, 0.5, 1.0, 3.0, 0.0, -2.0, 0.0, 1.0, 1.0, 0.0, 1.0, -1.0, 2.0,
-        ];
-        let mut a = vec![0.0; 16];
-        for i in 0..n {
-            for j in 0..n {
-                let mut s = if i == j { 1.0 } else { 0.0 };
-                for k in 0..n {
-                    s += bm[i * n + k] * bm[j * n + k];
-                }
-                a[i * n + j] = s;
-            }
-        }
-        let y = [1.0, -2.0, 0.5, 3.0];
-        let mut rhs = [0.0; 4];
-        for i in 0..n {
-            rhs[i] = (0..n).map(|j| a[i * n + j] * y[j]).sum();
-        }
-        let mut l = a.clone();
-        assert!(cholesky_in_place(&mut l, n));
-        let mut b1 = rhs;
-        cholesky_solve(&l, n, &mut b1);
-        let mut lu = bm.to_vec(); // non-symmetric, needs pivoting (zero at (1,1) after step)
-        let mut piv = [0; 4];
-        assert!(lu_in_place(&mut lu, n, &mut piv));
-        let mut rb = [0.0; 4];
-        for i in 0..n {
-            rb[i] = (0..n).map(|j| bm[i * n + j] * y[j]).sum();
-        }
-        let mut tmp = [0.0; 4];
-        lu_solve(&lu, n, &piv, &mut rb, &mut tmp);
-        for i in 0..n {
-            assert!((b1[i] - y[i]).abs() < 1e-12);
-            assert!((rb[i] - y[i]).abs() < 1e-12);
-        }
-        let mut inverse = vec![0.0; 16];
-        let mut work = vec![0.0; 16];
-        cholesky_inverse(&l, n, &mut inverse, &mut work);
-        for i in 0..n {
-            for j in 0..n {
-                let product: f64 = (0..n).map(|k| a[i * n + k] * inverse[k * n + j]).sum();
-                let identity = if i == j { 1.0 } else { 0.0 };
-                assert!((product - identity).abs() < 1e-12, "({i},{j}) {product}");
-            }
-        }
-        let mut not_spd = [1.0, 2.0, 2.0, 1.0];
-        assert!(!cholesky_in_place(&mut not_spd, 2));
-        let mut singular = [1.0, 2.0, 2.0, 4.0];
-        assert!(!lu_in_place(&mut singular, 2, &mut piv[..2]));
-    }
-}
-
 /// `exp(A)` of a row-major `n×n` matrix by scaling and squaring with the diagonal (6, 6)
 /// Padé approximant (Moler and Van Loan's method 3): `A` is scaled by `2⁻ˢ` until its
 /// 1-norm is at most ½, where the approximant's relative error is below 1e-16, and the
@@ -267,9 +207,10 @@ impl MatrixExponential {
         multiply(&self.fourth, &self.square, &mut self.sixth, n);
         let c = PADE_6;
         // even = c0 I + c2 X² + c4 X⁴ + c6 X⁶; tmp-matrix (in `out`) = c1 I + c3 X² + c5 X⁴.
-        for i in 0..n * n {
-            self.even[i] = c[2] * self.square[i] + c[4] * self.fourth[i] + c[6] * self.sixth[i];
-            out[i] = c[3] * self.square[i] + c[5] * self.fourth[i];
+        let powers = self.square.iter().zip(&self.fourth).zip(&self.sixth);
+        for ((even, odd), ((x2, x4), x6)) in self.even.iter_mut().zip(out.iter_mut()).zip(powers) {
+            *even = c[2] * x2 + c[4] * x4 + c[6] * x6;
+            *odd = c[3] * x2 + c[5] * x4;
         }
         for i in 0..n {
             self.even[i * n + i] += c[0];
@@ -277,9 +218,15 @@ impl MatrixExponential {
         }
         multiply(&self.scaled, out, &mut self.odd, n);
         // Denominator V − U (LU in `square`), numerator V + U (in `fourth`).
-        for i in 0..n * n {
-            self.square[i] = self.even[i] - self.odd[i];
-            self.fourth[i] = self.even[i] + self.odd[i];
+        let parts = self.even.iter().zip(&self.odd);
+        for ((denominator, numerator), (v, u)) in self
+            .square
+            .iter_mut()
+            .zip(self.fourth.iter_mut())
+            .zip(parts)
+        {
+            *denominator = v - u;
+            *numerator = v + u;
         }
         if !lu_in_place(&mut self.square, n, &mut self.pivots) {
             return false;
@@ -320,5 +267,65 @@ pub fn multiply(a: &[f64], b: &[f64], c: &mut [f64], n: usize) {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn factorizations_solve_a_known_system() {
+        // A = B Bᵀ + I with B fixed: SPD; solution chosen, right side computed by product.
+        let n = 4;
+        let bm = [
+            1.0, 2.0, 0.0, -1.0, 0.5, 1.0, 3.0, 0.0, -2.0, 0.0, 1.0, 1.0, 0.0, 1.0, -1.0, 2.0,
+        ];
+        let mut a = vec![0.0; 16];
+        for i in 0..n {
+            for j in 0..n {
+                let mut s = if i == j { 1.0 } else { 0.0 };
+                for k in 0..n {
+                    s += bm[i * n + k] * bm[j * n + k];
+                }
+                a[i * n + j] = s;
+            }
+        }
+        let y = [1.0, -2.0, 0.5, 3.0];
+        let mut rhs = [0.0; 4];
+        for i in 0..n {
+            rhs[i] = (0..n).map(|j| a[i * n + j] * y[j]).sum();
+        }
+        let mut l = a.clone();
+        assert!(cholesky_in_place(&mut l, n));
+        let mut b1 = rhs;
+        cholesky_solve(&l, n, &mut b1);
+        let mut lu = bm.to_vec(); // non-symmetric, needs pivoting (zero at (1,1) after step)
+        let mut piv = [0; 4];
+        assert!(lu_in_place(&mut lu, n, &mut piv));
+        let mut rb = [0.0; 4];
+        for i in 0..n {
+            rb[i] = (0..n).map(|j| bm[i * n + j] * y[j]).sum();
+        }
+        let mut tmp = [0.0; 4];
+        lu_solve(&lu, n, &piv, &mut rb, &mut tmp);
+        for i in 0..n {
+            assert!((b1[i] - y[i]).abs() < 1e-12);
+            assert!((rb[i] - y[i]).abs() < 1e-12);
+        }
+        let mut inverse = vec![0.0; 16];
+        let mut work = vec![0.0; 16];
+        cholesky_inverse(&l, n, &mut inverse, &mut work);
+        for i in 0..n {
+            for j in 0..n {
+                let product: f64 = (0..n).map(|k| a[i * n + k] * inverse[k * n + j]).sum();
+                let identity = if i == j { 1.0 } else { 0.0 };
+                assert!((product - identity).abs() < 1e-12, "({i},{j}) {product}");
+            }
+        }
+        let mut not_spd = [1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky_in_place(&mut not_spd, 2));
+        let mut singular = [1.0, 2.0, 2.0, 4.0];
+        assert!(!lu_in_place(&mut singular, 2, &mut piv[..2]));
     }
 }

@@ -19,8 +19,6 @@ use common::*;
 /// One emulator and its runs at a time: the bus check measures the machine's timing.
 static SERIAL: Mutex<()> = Mutex::new(());
 
-/// A set point inside the safe set: these runs are about the bus, not about barriers.
-
 /// `--rate auto` runs at this fraction of the rate the bus allows (the documented margin).
 const AUTO_MARGIN: f64 = 0.8;
 

@@ -114,8 +114,6 @@ fn whole_rows(path: &Path, last_may_be_cut: bool) -> usize {
     lines.len() - 1
 }
 
-/// A set point inside the safe set: these runs are about stopping, not about barriers.
-
 #[test]
 fn every_terminating_signal_ends_in_the_safe_stop_with_a_whole_log() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
