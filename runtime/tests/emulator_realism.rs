@@ -587,24 +587,21 @@ fn realism_options_out_of_range_are_refused_by_name() {
         "{error}"
     );
     // The library refuses what the command line cannot give either.
+    let refusal = |settings: &EmulatorSettings| {
+        emulator::physics(&robot("hardware-example.toml"), settings)
+            .and_then(|(map, model)| {
+                let plant = Plant::new(&model, Tolerances::default())?;
+                Device::new(map, plant, settings, Instant::now()).map(|_| ())
+            })
+            .unwrap_err()
+            .to_string()
+    };
     let mut settings = EmulatorSettings::new(BAUD);
     settings.latency_timer = 300 * MS;
-    let error = emulator::physics(&robot("hardware-example.toml"), &settings)
-        .and_then(|(map, model)| {
-            let plant = Plant::new(&model, Tolerances::default())?;
-            Device::new(map, plant, &settings, Instant::now()).map(|_| ())
-        })
-        .unwrap_err()
-        .to_string();
+    let error = refusal(&settings);
     assert!(error.contains("latency timer 300 ms"), "{error}");
     settings.latency_timer = Duration::ZERO;
     settings.noise.position = f64::NAN;
-    let error = emulator::physics(&robot("hardware-example.toml"), &settings)
-        .and_then(|(map, model)| {
-            let plant = Plant::new(&model, Tolerances::default())?;
-            Device::new(map, plant, &settings, Instant::now()).map(|_| ())
-        })
-        .unwrap_err()
-        .to_string();
+    let error = refusal(&settings);
     assert!(error.contains("position noise"), "{error}");
 }
