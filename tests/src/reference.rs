@@ -575,6 +575,20 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
     }
 }
 
+/// The paper's robot with a second, different module (longer, other radii, corners turned
+/// by 0.3 rad, a margin per corner), so that a mix-up of module parameters shows.
+pub fn two_different_modules() -> Robot {
+    let mut second = paper_module(0.0);
+    second.rest_length = 0.12;
+    second.tendon_radius = 0.035;
+    second.corner_radius = 0.055;
+    second.corner_angles = (0..6)
+        .map(|j| 0.3 + j as f64 * std::f64::consts::PI / 3.0)
+        .collect();
+    second.margins = vec![0.004, 0.005, 0.006, 0.007, 0.008, 0.009];
+    paper_robot(vec![paper_module(0.0), second])
+}
+
 /// A bend angle θ from the mixture the tests need: exactly 0, in `[0, 1e-8]`, log-uniform
 /// tiny, right around one of `switch_points` (given in `u = θ²`, both sides, down to one
 /// ulp), or uniform in `[0, 3]` rad.
@@ -734,8 +748,15 @@ pub fn arc_point_integrated(module: &Module, q: [f64; 3], s: f64, steps: usize) 
             ez + sa * k_ez[c] + (1.0 - ca) * k_k_ez[c]
         })
     };
-    let h = s * length / steps as f64;
-    // Compensated (Kahan) sums, so that rounding stays near one ulp over the many terms.
+    simpson(tangent, s * length, steps)
+}
+
+/// `∫₀ᵘ f(σ) dσ` of a vector function by composite Simpson over `steps` (made even, at least
+/// 2) intervals, with compensated (Kahan) sums so that rounding stays near one ulp over the
+/// many terms.
+pub fn simpson(f: impl Fn(f64) -> Vec3<f64>, upper: f64, steps: usize) -> Vec3<f64> {
+    let steps = steps.max(2).next_multiple_of(2);
+    let h = upper / steps as f64;
     let (mut sum, mut carry) = ([0.0; 3], [0.0; 3]);
     for n in 0..=steps {
         let weight = if n == 0 || n == steps {
@@ -745,7 +766,7 @@ pub fn arc_point_integrated(module: &Module, q: [f64; 3], s: f64, steps: usize) 
         } else {
             2.0
         };
-        let t = tangent(n as f64 * h);
+        let t = f(n as f64 * h);
         for c in 0..3 {
             let y = weight * t[c] - carry[c];
             let next = sum[c] + y;

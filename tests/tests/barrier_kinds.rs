@@ -49,15 +49,7 @@ const ARC_SLOTS: [usize; 2] = [3, 4];
 /// limits on both modules and a half-space and a sphere watching every kind of point of
 /// both modules: the structure of `every_barrier`, with numbers nowhere special.
 fn robot() -> Robot {
-    let mut second = reference::paper_module(0.0);
-    second.rest_length = 0.12;
-    second.tendon_radius = 0.035;
-    second.corner_radius = 0.055;
-    second.corner_angles = (0..6)
-        .map(|j| 0.3 + j as f64 * std::f64::consts::PI / 3.0)
-        .collect();
-    second.margins = vec![0.004, 0.005, 0.006, 0.007, 0.008, 0.009];
-    let mut robot = reference::paper_robot(vec![reference::paper_module(0.0), second]);
+    let mut robot = reference::two_different_modules();
     robot.limits = vec![
         Limits {
             elongation: Some([-0.05, 0.03]),

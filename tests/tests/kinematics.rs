@@ -22,15 +22,7 @@ const STEP: f64 = 1e-6;
 /// The paper's robot with two different modules (the second one scaled, so a mix-up of
 /// module parameters shows), and its parameter vector.
 fn paper() -> (Robot, [f64; paper_sim::NP]) {
-    let mut second = reference::paper_module(0.0);
-    second.rest_length = 0.12;
-    second.tendon_radius = 0.035;
-    second.corner_radius = 0.055;
-    second.corner_angles = (0..6)
-        .map(|j| 0.3 + j as f64 * std::f64::consts::PI / 3.0)
-        .collect();
-    second.margins = vec![0.004, 0.005, 0.006, 0.007, 0.008, 0.009];
-    let robot = reference::paper_robot(vec![reference::paper_module(0.0), second]);
+    let robot = reference::two_different_modules();
     let p = pack_params(&robot)
         .try_into()
         .expect("paper_sim parameter count");
@@ -444,22 +436,7 @@ fn translation_is_integral_of_backbone_tangent() {
                     bend.cos(),
                 ]
             };
-            let n = 4000;
-            let h = length / n as f64;
-            let mut integral = [0.0; 3];
-            for k in 0..=n {
-                let weight = if k == 0 || k == n {
-                    1.0
-                } else if k % 2 == 1 {
-                    4.0
-                } else {
-                    2.0
-                };
-                let tan = tangent(k as f64 * h);
-                for c in 0..3 {
-                    integral[c] += weight * tan[c] * h / 3.0;
-                }
-            }
+            let integral = reference::simpson(tangent, length, 4000);
             for c in 0..3 {
                 assert!(
                     (transforms[i][c][3] - integral[c]).abs() <= 1e-13 * length,
