@@ -7,12 +7,9 @@
 
 mod common;
 
-use std::io::Read;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::Mutex;
-use std::thread;
-use std::time::{Duration, Instant};
 
 use common::*;
 
@@ -22,45 +19,15 @@ static SERIAL: Mutex<()> = Mutex::new(());
 /// `--rate auto` runs at this fraction of the rate the bus allows (the documented margin).
 const AUTO_MARGIN: f64 = 0.8;
 
-/// Runs `softcbf run` against `port` to its end (at most 60 s): exit code, stdout, stderr.
+/// Runs `softcbf run` against `port` to its end (at most 60 s), quietly toward a set point
+/// inside the safe set: exit code, stdout, stderr.
 fn run(port: &str, out: &Path, extra: &[&str]) -> (i32, String, String) {
-    let mut child = Command::new(BIN)
-        .arg("run")
-        .arg("--robot")
-        .arg(robot())
-        .args(["--port", port, "--quiet", "--set-point", INSIDE, "--out"])
-        .arg(out)
-        .args(extra)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("softcbf run starts");
-    let mut stdout_pipe = child.stdout.take().unwrap();
-    let mut stderr_pipe = child.stderr.take().unwrap();
-    let reader = thread::spawn(move || {
-        let mut text = String::new();
-        let _ = stdout_pipe.read_to_string(&mut text);
-        text
-    });
-    let mut stderr = String::new();
-    let _ = stderr_pipe.read_to_string(&mut stderr);
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("softcbf run {extra:?}: still running after 60 s");
-        }
-        thread::sleep(Duration::from_millis(20));
-    };
-    let stdout = reader.join().unwrap();
-    assert!(
-        !stderr.contains("panicked"),
-        "{extra:?} panicked:\n{stderr}"
-    );
-    (status.code().unwrap_or(-1), stdout, stderr)
+    let mut options = vec!["--quiet", "--set-point", INSIDE];
+    options.extend_from_slice(extra);
+    finish_run(
+        start_run(port, out, &options),
+        &format!("softcbf run {extra:?}"),
+    )
 }
 
 /// The number after `prefix` in the first line of `text` that has it.

@@ -12,7 +12,6 @@ use std::io::{Read, Write};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
-use std::sync::mpsc::Receiver;
 use std::thread;
 use std::time::Duration;
 
@@ -39,45 +38,6 @@ fn head_c_10(child: &mut Child) {
 }
 
 /// A run started in the background with its output collected.
-struct RunProcess {
-    child: Child,
-    stdout: Option<Receiver<String>>,
-}
-
-fn start_run(port: &str, out: &Path, extra: &[&str]) -> RunProcess {
-    let mut child = Command::new(BIN)
-        .arg("run")
-        .arg("--robot")
-        .arg(robot())
-        .args(["--port", port, "--out"])
-        .arg(out)
-        .args(extra)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("softcbf run starts");
-    let stdout = Some(lines_of(child.stdout.take().unwrap()));
-    RunProcess { child, stdout }
-}
-
-/// Waits for the run to end; its exit code, standard output and standard error.
-fn finish_run(mut run: RunProcess, what: &str) -> (i32, String, String) {
-    let status = wait_for(&mut run.child, Duration::from_secs(30), what);
-    let mut stderr = String::new();
-    if let Some(mut e) = run.child.stderr.take() {
-        let _ = e.read_to_string(&mut stderr);
-    }
-    let stdout = run
-        .stdout
-        .map(|rx| rx.try_iter().collect::<Vec<_>>().join("\n"))
-        .unwrap_or_default();
-    assert!(
-        !stderr.contains("panicked"),
-        "{what}: the run panicked:\n{stderr}"
-    );
-    (status.code().unwrap_or(-1), stdout, stderr)
-}
-
 /// Torque Enable and Goal Current of servos 1..=6, read independently.
 fn assert_torque_off(port: &str, what: &str) {
     for id in 1..=6 {

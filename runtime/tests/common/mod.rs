@@ -194,3 +194,47 @@ pub const PRESENT_CURRENT: u16 = 126;
 
 /// A set point inside the safe set, for runs about the bus and the stop, not the barriers.
 pub const INSIDE: &str = "0,0,-0.02,0,0,-0.01";
+
+/// A `softcbf run` started in the background, its standard output read line by line.
+pub struct RunProcess {
+    /// Its process.
+    pub child: Child,
+    /// Its standard output (`None` when it goes elsewhere).
+    pub stdout: Option<Receiver<String>>,
+}
+
+/// Starts `softcbf run` on the hardware example against `port`, writing to `out`.
+pub fn start_run(port: &str, out: &Path, extra: &[&str]) -> RunProcess {
+    let mut child = Command::new(BIN)
+        .arg("run")
+        .arg("--robot")
+        .arg(robot())
+        .args(["--port", port, "--out"])
+        .arg(out)
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("softcbf run starts");
+    let stdout = Some(lines_of(child.stdout.take().unwrap()));
+    RunProcess { child, stdout }
+}
+
+/// Waits for the run to end; its exit code, standard output and standard error.
+pub fn finish_run(mut run: RunProcess, what: &str) -> (i32, String, String) {
+    let status = wait_for(&mut run.child, Duration::from_secs(60), what);
+    let mut stderr = String::new();
+    if let Some(mut e) = run.child.stderr.take() {
+        let _ = e.read_to_string(&mut stderr);
+    }
+    // The reader ends at the end of the output, which the exit has reached.
+    let stdout = run
+        .stdout
+        .map(|rx| rx.iter().collect::<Vec<_>>().join("\n"))
+        .unwrap_or_default();
+    assert!(
+        !stderr.contains("panicked"),
+        "{what}: the run panicked:\n{stderr}"
+    );
+    (status.code().unwrap_or(-1), stdout, stderr)
+}
