@@ -456,38 +456,55 @@ fn input_limits_are_solved_with_the_barrier_rows() {
     assert!(Controller::new(&model, settings).is_err());
 }
 
-/// The control path allocates nothing per tick: a tick (filter on, with active rows) and a
-/// plant step between ticks, after the first of each has run.
+/// The control path allocates nothing per tick: a tick (filter on, with active rows; the
+/// paper's rows, the sampled-data rows, and those with a robust margin) and a plant step
+/// between ticks, after the first of each has run.
 #[test]
 fn control_tick_and_plant_step_allocate_nothing() {
     use softcbf::integrator::Tolerances;
     use softcbf::plant::Plant;
     let model = paper_model();
-    let nq = model.nq();
-    let mut settings = ControllerSettings::paper(&model);
-    settings.safety = SafetyMode::Sampled;
-    settings.hold = 1e-3;
-    let mut controller = Controller::new(&model, settings).unwrap();
-    let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
-    let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
-    let zero = zeros(nq);
-    let reference = regulation(&set_point, &zero);
-    let (mut active, mut before) = (0, 0);
-    for k in 0..400 {
-        if k == 1 {
-            before = allocations();
+    // The robust margin's path too: ±20 % declared on every number, and a force bound.
+    let mut declared = model.robot.clone();
+    declared.uncertainty = softcbf_description::uncertainty::Uncertainty {
+        stiffness: 0.2,
+        damping: 0.2,
+        mass: 0.2,
+        force: 0.05,
+    };
+    let uncertain = Model::new(declared).unwrap();
+    for (model, safety) in [
+        (&model, SafetyMode::Paper),
+        (&model, SafetyMode::Sampled),
+        (&uncertain, SafetyMode::Sampled),
+    ] {
+        let nq = model.nq();
+        let mut settings = ControllerSettings::paper(model);
+        settings.safety = safety;
+        settings.hold = 1e-3;
+        let mut controller = Controller::new(model, settings).unwrap();
+        let mut plant = Plant::new(model, Tolerances::default()).unwrap();
+        let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
+        let zero = zeros(nq);
+        let reference = regulation(&set_point, &zero);
+        let (mut active, mut before) = (0, 0);
+        for k in 0..400 {
+            if k == 1 {
+                before = allocations();
+            }
+            tick(model, &mut controller, plant.q(), plant.qd(), reference);
+            active += usize::from(controller.qp_report().active > 0);
+            plant.tau_mut().copy_from_slice(controller.tau());
+            plant.advance(1e-3).unwrap();
         }
-        tick(&model, &mut controller, plant.q(), plant.qd(), reference);
-        active += usize::from(controller.qp_report().active > 0);
-        plant.tau_mut().copy_from_slice(controller.tau());
-        plant.advance(1e-3).unwrap();
+        assert_eq!(
+            allocations() - before,
+            0,
+            "{safety}, uncertainty declared: {}: allocations in 399 ticks and steps",
+            model.robot.uncertainty.is_declared()
+        );
+        assert!(active > 0, "{safety}: no tick exercised an active row");
     }
-    assert_eq!(
-        allocations() - before,
-        0,
-        "allocations in 399 ticks and steps"
-    );
-    assert!(active > 0, "no tick exercised an active row");
 }
 
 /// Every argument of a wrong length gives the size error naming it (a setup error, not
