@@ -277,6 +277,16 @@ pub struct Reference<'a> {
     pub qdd: &'a [f64],
 }
 
+/// Where a tick's nominal command comes from.
+#[derive(Clone, Copy, Debug)]
+pub enum Nominal<'a> {
+    /// The PD+ controller toward a reference.
+    Track(Reference<'a>),
+    /// A given generalized force \[N\], `nq` entries (an identification experiment's
+    /// feed-forward tensions): the filter alone acts on it.
+    Force(&'a [f64]),
+}
+
 /// Outcome of one tick. Every variant leaves a finite command in [`Controller::tau`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TickStatus {
@@ -898,9 +908,21 @@ fn size_problem(
     controller: &Controller,
     q: &[f64],
     qd: &[f64],
-    reference: &Reference<'_>,
+    nominal: &Nominal<'_>,
 ) -> Option<InvalidState> {
     let nq = model.nq();
+    let (a, b, c) = match nominal {
+        Nominal::Track(reference) => (
+            ("reference q̄", reference.q.len()),
+            ("reference q̄̇", reference.qd.len()),
+            ("reference q̄̈", reference.qdd.len()),
+        ),
+        Nominal::Force(force) => (
+            ("nominal τ", force.len()),
+            ("nominal τ", force.len()),
+            ("nominal τ", force.len()),
+        ),
+    };
     [
         (
             "controller (built for another model): nq",
@@ -914,9 +936,9 @@ fn size_problem(
         ),
         ("q", q.len(), nq),
         ("q̇", qd.len(), nq),
-        ("reference q̄", reference.q.len(), nq),
-        ("reference q̄̇", reference.qd.len(), nq),
-        ("reference q̄̈", reference.qdd.len(), nq),
+        (a.0, a.1, nq),
+        (b.0, b.1, nq),
+        (c.0, c.1, nq),
     ]
     .into_iter()
     .find(|(_, got, expected)| got != expected)
@@ -945,11 +967,38 @@ pub fn tick(
     qd: &[f64],
     reference: Reference<'_>,
 ) -> TickStatus {
-    if let Some(why) = size_problem(model, controller, q, qd, &reference) {
+    tick_nominal(model, controller, q, qd, Nominal::Track(reference))
+}
+
+/// [`tick`] with the nominal command given as a generalized force `tau_nom` \[N\] instead
+/// of the PD+ law: the filter (if on) keeps the barriers over it, as over PD+. An
+/// identification experiment's feed-forward tensions pass through here.
+pub fn tick_feedforward(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+    tau_nom: &[f64],
+) -> TickStatus {
+    tick_nominal(model, controller, q, qd, Nominal::Force(tau_nom))
+}
+
+/// [`tick`] for either kind of nominal command.
+pub fn tick_nominal(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+    nominal: Nominal<'_>,
+) -> TickStatus {
+    if let Some(why) = size_problem(model, controller, q, qd, &nominal) {
         return controller.fallback(why);
     }
     let nq = controller.nq;
-    let finite = [q, qd, reference.q, reference.qd, reference.qdd];
+    let finite = match nominal {
+        Nominal::Track(reference) => [q, qd, reference.q, reference.qd, reference.qdd],
+        Nominal::Force(force) => [q, qd, force, force, force],
+    };
     if !finite.into_iter().all(all_finite) {
         return controller.fallback(InvalidState::NonFinite);
     }
@@ -986,18 +1035,23 @@ pub fn tick(
     let settings = &controller.settings;
     let ws = &controller.dynamics;
     for i in 0..nq {
-        let row = i * nq..(i + 1) * nq;
-        let inertial = dot(&ws.mass_matrix[row.clone()], reference.qdd);
-        let mut feedback = 0.0;
-        for j in 0..nq {
-            feedback += settings.kp[i * nq + j] * (reference.q[j] - q[j])
-                + settings.kd[i * nq + j] * (reference.qd[j] - qd[j]);
-        }
-        controller.tau_nom[i] = inertial
-            + ws.nonlinear[i]
-            + model.stiffness[i] * reference.q[i]
-            + model.damping[i] * reference.qd[i]
-            + feedback;
+        controller.tau_nom[i] = match nominal {
+            Nominal::Track(reference) => {
+                let row = i * nq..(i + 1) * nq;
+                let inertial = dot(&ws.mass_matrix[row], reference.qdd);
+                let mut feedback = 0.0;
+                for j in 0..nq {
+                    feedback += settings.kp[i * nq + j] * (reference.q[j] - q[j])
+                        + settings.kd[i * nq + j] * (reference.qd[j] - qd[j]);
+                }
+                inertial
+                    + ws.nonlinear[i]
+                    + model.stiffness[i] * reference.q[i]
+                    + model.damping[i] * reference.qd[i]
+                    + feedback
+            }
+            Nominal::Force(force) => force[i],
+        };
         controller.drift[i] =
             ws.nonlinear[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
     }

@@ -55,6 +55,7 @@ pub mod dynamics;
 pub mod exit;
 pub mod hardware;
 pub mod hold;
+pub mod identify;
 pub mod inspect;
 pub mod integrator;
 pub mod linalg;

@@ -42,8 +42,10 @@ pub struct ModuleHardware {
     /// `s_k = ±1`: `+1` when a positive servo rotation (and a positive current) winds the
     /// tendon, shortening it; `−1` when it unwinds it.
     pub directions: [f64; 3],
-    /// Tension per unit of motor current [N/mA], identified on the robot.
-    pub actuator_gain: f64,
+    /// Tension per unit of motor current [N/mA] of each tendon's servo, identified on the
+    /// robot (`softcbf identify`); the file gives one number for the module or one per
+    /// tendon.
+    pub actuator_gain: [f64; 3],
     /// `[f_min, f_max]`: tensions commanded are held in this range \[N\].
     pub tension_limits: [f64; 2],
 }
@@ -483,7 +485,7 @@ impl TableChecker<'_> {
             zero_angles,
             zero_lengths,
             directions,
-            actuator_gain,
+            actuator_gain: [actuator_gain; 3],
             tension_limits: [f_min, f_max],
         })
     }

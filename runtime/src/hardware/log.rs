@@ -36,11 +36,17 @@ pub trait RunLog {
 /// | `hold [us]` | the hold period the controller assumed |
 /// | `hold_excess [us]` | how much longer than its hold the previous command stayed in force (> 0: a hold overrun; NaN: no command this tick) |
 /// | `gain_scale` | the factor of the HOCBF gains, `nominal period / hold` |
+/// | `sampled [us]` | how long before `t` the servos sampled the reading (the state's own time is `t − sampled`) |
+/// | `step` | the step of an identification experiment (a tension set, or an operating point); NaN in a plain run |
+/// | `rest` | 1: a static experiment's step has come to rest, this row's reading is part of its rest state |
 /// | `f module i tendon k [N]` | tensions sent |
 /// | `qpred <c> [m]` | the `q` the command was computed at: the state read, predicted `age` ahead |
+/// | `I module i tendon k [mA]` | the goal current sent (register × unit, signed as the servo's register) |
 ///
-/// `q`, `q̇` and `b` are at the state read. Logs written before `hold_excess [us]` existed
-/// lack it and read as well (columns are found by name).
+/// `q`, `q̇` and `b` are at the state read; a command reaches the servos `compute + write`
+/// after `t`. Logs written before `hold_excess [us]` (or the identification columns
+/// `sampled [us]`, `step`, `rest`, `I …`) existed lack them and read as well (columns are
+/// found by name).
 pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
     let mut names: Vec<String> = [
         "fresh",
@@ -59,17 +65,21 @@ pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
         "hold [us]",
         "hold_excess [us]",
         "gain_scale",
+        "sampled [us]",
+        "step",
+        "rest",
     ]
     .iter()
     .map(|s| s.to_string())
     .collect();
     names.extend((0..servos).map(|s| format!("f module {} tendon {} [N]", s / 3 + 1, s % 3 + 1)));
     names.extend(coordinates.iter().map(|c| format!("qpred {c} [m]")));
+    names.extend((0..servos).map(|s| format!("I module {} tendon {} [mA]", s / 3 + 1, s % 3 + 1)));
     names
 }
 
 /// Number of extra columns before the tensions.
-pub const FIXED_EXTRA: usize = 16;
+pub const FIXED_EXTRA: usize = 19;
 
 /// The streaming CSV log of a run.
 pub struct CsvLog {

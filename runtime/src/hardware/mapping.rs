@@ -253,7 +253,8 @@ impl TendonMap {
     /// `round(s_k f / (gain · unit))`, saturated to the register's range.
     pub fn current_from_tension(&self, servo: usize, f: f64) -> i16 {
         let hw = &self.modules[servo / 3].hardware;
-        let units = hw.directions[servo % 3] * f / (hw.actuator_gain * self.hardware.current_unit);
+        let units = hw.directions[servo % 3] * f
+            / (hw.actuator_gain[servo % 3] * self.hardware.current_unit);
         units
             .round()
             .clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
@@ -265,7 +266,7 @@ impl TendonMap {
         let hw = &self.modules[servo / 3].hardware;
         hw.directions[servo % 3]
             * f64::from(current)
-            * hw.actuator_gain
+            * hw.actuator_gain[servo % 3]
             * self.hardware.current_unit
     }
 

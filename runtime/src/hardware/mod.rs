@@ -19,6 +19,7 @@ pub mod cli;
 pub mod control_table;
 pub mod description;
 pub mod emulator;
+pub mod experiment;
 pub mod limits;
 pub mod log;
 pub mod mapping;

@@ -142,6 +142,8 @@ struct Workspace<'m> {
     /// The generalized force of the tensions last sent (in force until the next command).
     tau_applied: Vec<f64>,
     currents: Vec<i16>,
+    /// The Goal Current unit \[mA\] (the log's currents).
+    current_unit: f64,
     zeros: Vec<f64>,
     nan_q: Vec<f64>,
     nan_b: Vec<f64>,
@@ -172,6 +174,8 @@ struct TickTiming {
     /// command this tick).
     hold_excess: f64,
     gain_scale: f64,
+    /// How long before the row's `t` the servos sampled the reading \[s\].
+    sampled: f64,
 }
 
 /// Runs the controller on the servos behind `bus` until the duration, `stop`, or a fault.
@@ -227,10 +231,11 @@ pub fn run_reporting<P: ServoPort>(
         tensions: vec![0.0; n],
         tau_applied: vec![0.0; nq],
         currents: vec![0; n],
+        current_unit: hardware.current_unit,
         zeros: vec![0.0; nq],
         nan_q: vec![f64::NAN; nq],
         nan_b: vec![f64::NAN; model.nb()],
-        extra: vec![0.0; FIXED_EXTRA + n + nq],
+        extra: vec![0.0; FIXED_EXTRA + 2 * n + nq],
         predictor: Plant::new(model, prediction_tolerances())?,
         intervals: [period; RATE_WINDOW],
         log_error: None,
@@ -469,9 +474,8 @@ fn control_loop<P: ServoPort>(
                 let sampled = io
                     .reading_sent()
                     .map_or(read_done, |(sent, len)| sent + wire_time(len, baud));
-                let age = read_done.saturating_duration_since(sampled).as_secs_f64()
-                    + compute_estimate
-                    + write_wire;
+                timing.sampled = read_done.saturating_duration_since(sampled).as_secs_f64();
+                let age = timing.sampled + compute_estimate + write_wire;
                 timing.age = age;
                 // The hold this command is computed for: the longest interval of the last
                 // few (never less than the nominal period), with an allowance for jitter,
@@ -702,12 +706,21 @@ fn push_row(
         timing.hold * 1e6,
         timing.hold_excess * 1e6,
         timing.gain_scale,
+        timing.sampled * 1e6,
+        f64::NAN,
+        0.0,
     ];
     ws.extra[..FIXED_EXTRA].copy_from_slice(&fixed);
     let (n, nq) = (ws.tensions.len(), ws.q.len());
     let row = if fresh {
         ws.extra[FIXED_EXTRA..FIXED_EXTRA + n].copy_from_slice(&ws.tensions);
-        ws.extra[FIXED_EXTRA + n..].copy_from_slice(&ws.q_used);
+        ws.extra[FIXED_EXTRA + n..FIXED_EXTRA + n + nq].copy_from_slice(&ws.q_used);
+        for (slot, &register) in ws.extra[FIXED_EXTRA + n + nq..]
+            .iter_mut()
+            .zip(&ws.currents)
+        {
+            *slot = f64::from(register) * ws.current_unit;
+        }
         Row {
             t,
             q: &ws.q,
@@ -718,7 +731,7 @@ fn push_row(
             extra: &ws.extra,
         }
     } else {
-        ws.extra[FIXED_EXTRA..FIXED_EXTRA + n + nq].fill(f64::NAN);
+        ws.extra[FIXED_EXTRA..].fill(f64::NAN);
         Row {
             t,
             q: &ws.nan_q,
