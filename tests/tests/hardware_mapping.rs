@@ -147,6 +147,25 @@ fn currents_and_registers_by_hand() {
     assert_eq!(map.velocity_from_rate(0.229 * 2.0 * PI / 60.0 * 7.4), 7);
 }
 
+/// Per-tendon gains (`robots/calibration-true.toml`: module 1 `[0.030, 0.052, 0.050]`,
+/// module 2 `[0.048, 0.030, 0.056]` N/mA, signs `(1, −1, 1)` and `(1, 1, −1)`): each servo's
+/// current follows its own gain, `I = s f / (g · 2.69 mA)`.
+#[test]
+fn per_tendon_gains_give_per_tendon_currents() {
+    let robot = Robot::load(&softcbf_tests::robots::path("calibration-true.toml")).unwrap();
+    let map = TendonMap::new(&robot).unwrap();
+    // 10 N: 10/(0.030·2.69) = 123.9 → 124; 10/(0.052·2.69) = 71.49 → −71 (unwinding
+    // sign); 10/(0.050·2.69) = 74.35 → 74; 10/(0.048·2.69) = 77.45 → 77; the 0.030 servo of
+    // module 2 → 124; 10/(0.056·2.69) = 66.38 → −66. One gain for all would give 93 each.
+    let currents: Vec<i16> = (0..6).map(|s| map.current_from_tension(s, 10.0)).collect();
+    assert_eq!(currents, [124, -71, 74, 77, 124, -66]);
+    // Back: 100 units pull s·g·269 mA: 8.07, −13.988, 13.45, 12.912, 8.07, −15.064 N.
+    let by_hand = [8.07, -13.988, 13.45, 12.912, 8.07, -15.064];
+    for (s, f) in by_hand.iter().enumerate() {
+        close(map.tension_from_current(s, 100), *f, 1e-12);
+    }
+}
+
 #[test]
 fn a_robot_without_hardware_is_refused() {
     let error = TendonMap::new(&Robot::paper_sim()).unwrap_err();

@@ -8,6 +8,7 @@
 use std::ops::{Deref, Range};
 
 use serde::Deserialize;
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use softcbf_description::domain;
 use softcbf_description::limits::{self as ranges, Limit};
 use softcbf_description::robot::{HardwareTable, Module, Robot, Routing};
@@ -154,8 +155,43 @@ struct RawModuleHardware {
     zero_angle_deg: Spanned<Vec<Spanned<f64>>>,
     zero_length: List,
     direction: Spanned<Vec<Spanned<i64>>>,
-    actuator_gain: Spanned<f64>,
+    actuator_gain: Spanned<RawGain>,
     tension_limits: Spanned<Vec<Spanned<f64>>>,
+}
+
+/// `actuator_gain` as written: one number for the module's three servos, or one per tendon.
+enum RawGain {
+    All(f64),
+    Each(Vec<Spanned<f64>>),
+}
+
+impl<'de> Deserialize<'de> for RawGain {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct GainVisitor;
+        impl<'de> Visitor<'de> for GainVisitor {
+            type Value = RawGain;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number [N/mA] or an array of three numbers, one per tendon")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<RawGain, E> {
+                Ok(RawGain::All(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<RawGain, E> {
+                Ok(RawGain::All(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RawGain, E> {
+                Ok(RawGain::All(v as f64))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<RawGain, A::Error> {
+                let mut each = Vec::new();
+                while let Some(value) = seq.next_element::<Spanned<f64>>()? {
+                    each.push(value);
+                }
+                Ok(RawGain::Each(each))
+            }
+        }
+        deserializer.deserialize_any(GainVisitor)
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -459,11 +495,32 @@ impl TableChecker<'_> {
                 }
             };
         }
-        let actuator_gain = self.within(
-            &raw.actuator_gain,
-            &field("actuator_gain"),
-            &limits::ACTUATOR_GAIN_N_PER_MA,
-        )?;
+        let gain_field = field("actuator_gain");
+        let actuator_gain = match raw.actuator_gain.get_ref() {
+            RawGain::All(g) => {
+                [self.limited(
+                    *g,
+                    &raw.actuator_gain.span(),
+                    &gain_field,
+                    "",
+                    &limits::ACTUATOR_GAIN_N_PER_MA,
+                )?; 3]
+            }
+            RawGain::Each(each) => {
+                let gains = self.list_within(each, &gain_field, &limits::ACTUATOR_GAIN_N_PER_MA)?;
+                <[f64; 3]>::try_from(gains.as_slice()).map_err(|_| {
+                    self.invalid(
+                        &raw.actuator_gain.span(),
+                        &gain_field,
+                        format!(
+                            "has {} entries; give one gain per tendon (3), or a single number \
+                             for all three",
+                            gains.len()
+                        ),
+                    )
+                })?
+            }
+        };
         let tensions = self.list_within(
             raw.tension_limits.get_ref(),
             &field("tension_limits"),
@@ -485,7 +542,7 @@ impl TableChecker<'_> {
             zero_angles,
             zero_lengths,
             directions,
-            actuator_gain: [actuator_gain; 3],
+            actuator_gain,
             tension_limits: [f_min, f_max],
         })
     }
@@ -865,6 +922,78 @@ mod tests {
                 .contains("expected `servo` or `difference`"),
             "{error}"
         );
+    }
+
+    /// `actuator_gain`: one number for the three servos, or one per tendon in the order of
+    /// `tendon_angles_deg`, each in 1e-6..=100 N/mA; MODULE's gain is on line 8.
+    #[test]
+    fn actuator_gain_is_one_number_or_one_per_tendon() {
+        let module = |gain: &str| MODULE.replace("actuator_gain = 0.08", gain);
+        assert_eq!(parse(MODULE).unwrap().modules[0].actuator_gain, [0.08; 3]);
+        let hw = parse(&module("actuator_gain = [0.03, 0.052, 5]")).unwrap();
+        assert_eq!(hw.modules[0].actuator_gain, [0.03, 0.052, 5.0]);
+        // Integers are numbers too.
+        let hw = parse(&module("actuator_gain = [1, 2, 3]")).unwrap();
+        assert_eq!(hw.modules[0].actuator_gain, [1.0, 2.0, 3.0]);
+        // A bad entry is named with its place, on its own line.
+        assert_invalid(
+            &module("actuator_gain = [0.04,\n 0,\n 0.04]"),
+            9,
+            "hardware.module[1].actuator_gain",
+            "entry 2 must be ≥ 1e-6 and ≤ 100 N/mA, got 0",
+        );
+        assert_invalid(
+            &module("actuator_gain = [0.04, 0.04, 101]"),
+            8,
+            "hardware.module[1].actuator_gain",
+            "entry 3 must be ≥ 1e-6 and ≤ 100 N/mA, got 101",
+        );
+        assert_invalid(
+            &module("actuator_gain = [0.04, nan, 0.04]"),
+            8,
+            "hardware.module[1].actuator_gain",
+            "entry 2 must be a finite number",
+        );
+        for (gains, n) in [
+            ("[0.04, 0.04]", 2),
+            ("[0.04, 0.04, 0.04, 0.04]", 4),
+            ("[]", 0),
+        ] {
+            assert_invalid(
+                &module(&format!("actuator_gain = {gains}")),
+                8,
+                "hardware.module[1].actuator_gain",
+                &format!("has {n} entries; give one gain per tendon (3)"),
+            );
+        }
+        // The second module's gains are its own.
+        let second = MODULE
+            .replace("[1, 2, 3]", "[4, 5, 6]")
+            .replace("actuator_gain = 0.08", "actuator_gain = [0.01, 0.02, 0.03]");
+        let text = format!("[[module]]\n[[module]]\n[hardware]\n{MODULE}{second}");
+        let hw = hardware_of(&text, "robots/x.toml").unwrap();
+        assert_eq!(hw.modules[0].actuator_gain, [0.08; 3]);
+        assert_eq!(hw.modules[1].actuator_gain, [0.01, 0.02, 0.03]);
+        let bad = second.replace("0.02, 0.03]", "0.02, -1]");
+        let error = hardware_of(
+            &format!("[[module]]\n[[module]]\n[hardware]\n{MODULE}{bad}"),
+            "robots/x.toml",
+        )
+        .unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "robots/x.toml:16: field `hardware.module[2].actuator_gain`: entry 3 must be ≥ \
+             1e-6 and ≤ 100 N/mA, got -1"
+        );
+        // Neither a number nor an array of numbers.
+        for gains in ["\"0.04\"", "[0.04, \"x\", 0.04]", "[[0.04], 0.04, 0.04]"] {
+            let error = parse(&module(&format!("actuator_gain = {gains}"))).unwrap_err();
+            let text = error.to_string();
+            assert!(
+                text.contains("robots/x.toml:8:") && text.contains("actuator_gain"),
+                "{text}"
+            );
+        }
     }
 
     #[test]

@@ -9,7 +9,8 @@
 //! ([`Faults`]) and, for tests, records the bus ([`EmulatorLog`]).
 //!
 //! Realism, each off unless asked ([`Preset::Ideal`] is today's emulator): the physics of
-//! another robot file than the controller's ([`EmulatorSettings::plant`]), the adapter's
+//! another robot file than the controller's, and the actuator gains of its `[hardware]`
+//! table if it has one ([`EmulatorSettings::plant`]), the adapter's
 //! latency timer ([`adapter`]), the servos' Return Delay Time, and sensor noise before the
 //! readings are rounded to register units ([`SensorNoise`]). [`Preset::Factory`] sets them
 //! as a U2D2 (or any FTDI adapter) and X-series servos come from the factory.
@@ -138,7 +139,8 @@ pub struct EmulatorSettings {
     pub noise: SensorNoise,
     /// The "true" robot whose physics (its numbers, and the tendon geometry the servos
     /// wind) the servos move, if not the one whose `[hardware]` table they are; its
-    /// structure must be the same. Its own `[hardware]` table, if any, is not read.
+    /// structure must be the same. Of its own `[hardware]` table, if any, only the actuator
+    /// gains are taken (the true current → tension of each servo); see [`physics`].
     pub plant: Option<Robot>,
     /// Simulated time the robot rests with zero tension before serving, so it starts at
     /// its equilibrium under gravity \[s\].
@@ -512,27 +514,31 @@ fn structure_difference(robot: &Robot, plant: &Robot) -> Option<String> {
 }
 
 /// Refuses a plant whose structure (and so generated model) is not `robot`'s, naming both
-/// files and the first difference.
+/// files and the first difference, or whose `[hardware]` table (if any: [`physics`] takes
+/// its actuator gains) is not valid, naming the plant's file, line and field.
 pub fn check_plant(robot: &Robot, plant: &Robot) -> Result<(), EmulatorError> {
-    match structure_difference(robot, plant) {
-        None => Ok(()),
-        Some(difference) => Err(EmulatorError::PlantStructure {
+    if let Some(difference) = structure_difference(robot, plant) {
+        return Err(EmulatorError::PlantStructure {
             plant: plant.source.display().to_string(),
             robot: robot.source.display().to_string(),
             difference,
-        }),
+        });
     }
+    description::load(plant).map_err(MappingError::from)?;
+    Ok(())
 }
 
 /// The mapping and the model the emulated servos move: the servo facts of `robot`'s
-/// `[hardware]` table (IDs, units, pulleys, calibration, actuator gains) on the tendons and
-/// physics of [`EmulatorSettings::plant`], or of `robot` itself. A plant of another
-/// structure is refused, naming its file.
+/// `[hardware]` table (IDs, units, pulleys, calibration, directions, limits) on the tendons
+/// and physics of [`EmulatorSettings::plant`], or of `robot` itself. The actuator gains
+/// (current → tension) are the plant's when its file has a `[hardware]` table, checked as
+/// any robot's, and `robot`'s otherwise; the rest of the plant's table is not used. A
+/// plant of another structure is refused, naming its file.
 pub fn physics(
     robot: &Robot,
     settings: &EmulatorSettings,
 ) -> Result<(TendonMap, Model), EmulatorError> {
-    let hardware = description::load(robot)
+    let mut hardware = description::load(robot)
         .map_err(MappingError::from)?
         .ok_or_else(|| MappingError::NoHardware {
             file: robot.source.display().to_string(),
@@ -540,6 +546,12 @@ pub fn physics(
     let body = match &settings.plant {
         Some(plant) => {
             check_plant(robot, plant)?;
+            if let Some(true_hardware) = description::load(plant).map_err(MappingError::from)? {
+                // Same structure, so as many modules (load checked one table per module).
+                for (ours, theirs) in hardware.modules.iter_mut().zip(&true_hardware.modules) {
+                    ours.actuator_gain = theirs.actuator_gain;
+                }
+            }
             plant
         }
         None => robot,
