@@ -1,27 +1,31 @@
 //! The `softcbf emulate` and `softcbf run` subcommands: options (each checked by the same
 //! rule as the robot file's field, [`super::limits`]), ports, the summary and the
-//! exit status. The work itself is in [`super::emulator`] and [`super::run_loop`].
+//! exit status. The work itself is in [`super::emulator`] and [`super::run_loop`];
+//! `softcbf run --experiment` drives [`super::experiment`].
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clap::Args;
-use softcbf_description::limits;
+use softcbf_description::limits::{self, Limit};
 use softcbf_description::robot::Robot;
 
-use crate::cli::{check_number, parse_coordinates};
+use crate::cli::{check_number, parse_coordinates, parse_number};
 use crate::control::SafetyMode;
 use crate::exit;
 use crate::hardware::bus_check::{self, BusTiming, LatencyTimer, RateChoice, RateRule};
 use crate::hardware::description::{self, Hardware};
 use crate::hardware::emulator::{self, EmulatorSettings, Faults, Preset};
+use crate::hardware::experiment::{
+    self as experiment, Experiment, ExperimentKind, ExperimentReport, ExperimentSettings,
+};
 use crate::hardware::limits as servo;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::{
     self, RunError, RunSettings, RunSummary, StartReport, StopReason, Verdict,
 };
 use crate::hardware::signal;
-use crate::hardware::status_line::StatusLine;
+use crate::hardware::status_line::{ExperimentProgress, StatusLine};
 use crate::model::Model;
 use crate::output::Console;
 use crate::protocol::Bus;
@@ -115,12 +119,37 @@ pub struct RunArgs {
     /// (default: half of the loop rate; with --rate auto at most 16.5 Hz).
     #[arg(long, allow_negative_numbers = true)]
     pub min_rate: Option<f64>,
-    /// Stop after this many seconds (default: run until Ctrl-C).
+    /// Stop after this many seconds (default: run until Ctrl-C). With --experiment
+    /// dynamic: its length (default 60); with --experiment static: a cap.
     #[arg(long, allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Set point `Δx,Δy,δL,…` (m) (default: the robot file's hardware.set_point).
     #[arg(long, allow_hyphen_values = true)]
     pub set_point: Option<String>,
+    /// An identification experiment instead of a set point, under the safety filter:
+    /// `static` (constant tension sets, each held until the robot is at rest) or
+    /// `dynamic` (multisines in tension around three operating points). Then
+    /// `softcbf identify` reads the log.
+    #[arg(long, value_name = "NAME", value_parser = ExperimentKind::parse)]
+    pub experiment: Option<ExperimentKind>,
+    /// Experiment amplitude (N), one value or one per module: the static sets' increment,
+    /// the largest deviation of a dynamic servo's multisine (default: from the robot
+    /// file's stiffness, masses and limits, within half of the room the barriers leave).
+    #[arg(long, value_name = "N[,N…]", allow_hyphen_values = true)]
+    pub amplitude: Option<String>,
+    /// Experiment base tension (N), one value or one per module: the static sets' base,
+    /// the dynamic experiment's lowest operating point (default: f_min static, f_min +
+    /// amplitude dynamic).
+    #[arg(long, value_name = "N[,N…]", allow_hyphen_values = true)]
+    pub base_tension: Option<String>,
+    /// Static experiment: longest wait for a tension set to come to rest (s) (default 6);
+    /// a set that does not is counted and left.
+    #[arg(long, allow_negative_numbers = true)]
+    pub step_time: Option<f64>,
+    /// Static experiment: the band (max − min over 0.5 s) within which every coordinate
+    /// counts as at rest (m) (default 3e-4).
+    #[arg(long, allow_negative_numbers = true)]
+    pub rest_threshold: Option<f64>,
     /// Proportional gain K_P = kp·I (N/m) (default: the robot file's `[gains] kp`, else 5).
     #[arg(long, allow_negative_numbers = true)]
     pub kp: Option<f64>,
@@ -363,11 +392,17 @@ pub fn run_settings(
     };
     let mut settings = RunSettings::new(rate, set_point);
     settings.rate_rule = rate_rule;
+    settings.experiment = experiment_settings(args)?;
     if let Some(min_rate) = args.min_rate {
         settings.min_rate = Some(check_number("--min-rate", min_rate, &limits::RATE_HZ)?);
     }
     if let Some(duration) = args.duration {
-        settings.duration = Some(check_number("--duration", duration, &limits::DURATION_S)?);
+        let duration = check_number("--duration", duration, &limits::DURATION_S)?;
+        // An experiment ends the run itself: its length, or its cap.
+        match &mut settings.experiment {
+            Some(experiment) => experiment.duration = Some(duration),
+            None => settings.duration = Some(duration),
+        }
     }
     if let Some(ms) = args.bus_watchdog_ms {
         settings.bus_watchdog =
@@ -378,12 +413,99 @@ pub fn run_settings(
     let options = GainOptions::checked(args.kp, args.kd, args.p, args.p1, args.p2)?;
     settings.gains = Some(resolve_gains(&options, &ScenarioGains::default(), robot));
     settings.validate(3 * robot.modules.len())?;
+    // The experiment on this robot at the rate asked (built again at the rate run at).
+    if let Some(design) = &settings.experiment {
+        Experiment::new(design, robot, &tension_limits(hardware), settings.rate)?;
+    }
     let threshold = check_number(
         "--barrier-threshold",
         args.barrier_threshold,
         &limits::BARRIER_THRESHOLD_M,
     )?;
     Ok((settings, threshold))
+}
+
+/// Each module's `[f_min, f_max]` \[N\].
+fn tension_limits(hardware: &Hardware) -> Vec<[f64; 2]> {
+    hardware.modules.iter().map(|m| m.tension_limits).collect()
+}
+
+/// A list of one number, or one per module, given for option `name`, each in `limit`.
+fn parse_list(name: &str, text: &str, limit: &Limit) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|part| parse_number(name, part, limit))
+        .collect()
+}
+
+/// The experiment of `--experiment` and its options; options of an experiment without
+/// one, and options of a set point with one, are refused.
+fn experiment_settings(args: &RunArgs) -> Result<Option<ExperimentSettings>, String> {
+    let Some(kind) = args.experiment else {
+        for (given, name) in [
+            (args.amplitude.is_some(), "--amplitude"),
+            (args.base_tension.is_some(), "--base-tension"),
+            (args.step_time.is_some(), "--step-time"),
+            (args.rest_threshold.is_some(), "--rest-threshold"),
+        ] {
+            if given {
+                return Err(format!(
+                    "{name}: an option of --experiment; give --experiment static or dynamic"
+                ));
+            }
+        }
+        return Ok(None);
+    };
+    for (given, name, why) in [
+        (
+            args.set_point.is_some(),
+            "--set-point",
+            "an experiment commands tensions, not a set point",
+        ),
+        (
+            args.no_filter,
+            "--no-filter",
+            "experiments run with the safety filter on",
+        ),
+        (
+            args.kp.is_some() || args.kd.is_some(),
+            if args.kp.is_some() { "--kp" } else { "--kd" },
+            "an experiment commands tensions directly, without PD+",
+        ),
+    ] {
+        if given {
+            return Err(format!("{name}: not with --experiment: {why}"));
+        }
+    }
+    let static_only = [
+        (args.step_time.is_some(), "--step-time"),
+        (args.rest_threshold.is_some(), "--rest-threshold"),
+    ];
+    if kind == ExperimentKind::Dynamic
+        && let Some((_, name)) = static_only.iter().find(|(given, _)| *given)
+    {
+        return Err(format!(
+            "{name}: an option of --experiment static, not dynamic"
+        ));
+    }
+    let mut settings = ExperimentSettings::new(kind);
+    if let Some(text) = &args.amplitude {
+        settings.amplitude = Some(parse_list("--amplitude", text, &experiment::AMPLITUDE_N)?);
+    }
+    if let Some(text) = &args.base_tension {
+        settings.base_tension = Some(parse_list(
+            "--base-tension",
+            text,
+            &experiment::BASE_TENSION_N,
+        )?);
+    }
+    if let Some(seconds) = args.step_time {
+        settings.step_time = check_number("--step-time", seconds, &experiment::STEP_TIME_S)?;
+    }
+    if let Some(metres) = args.rest_threshold {
+        settings.rest_threshold =
+            check_number("--rest-threshold", metres, &experiment::REST_THRESHOLD_M)?;
+    }
+    Ok(Some(settings))
 }
 
 /// `--rate`: a number of Hz in [`limits::RATE_HZ`], refused when the bus cannot hold it, or
@@ -476,6 +598,15 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     let stop = signal::stop_flag();
     let (robot, mut hardware) = load(&args.robot)?;
     let (settings, threshold) = run_settings(&args, &robot, &mut hardware)?;
+    let planned = match &settings.experiment {
+        Some(design) => Some(Experiment::new(
+            design,
+            &robot,
+            &tension_limits(&hardware),
+            settings.rate,
+        )?),
+        None => None,
+    };
     let map = TendonMap::with_hardware(&robot, hardware.clone()).map_err(|e| e.to_string())?;
     let model = Model::new(robot.clone()).map_err(|e| e.to_string())?;
     output_directory(&args.out, "--out")?;
@@ -501,6 +632,10 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         console.say(&line);
     }
     let mut log = StatusLine::new(log, !args.quiet);
+    if let Some(planned) = &planned {
+        console.say(&experiment_line(planned));
+        log = log.with_experiment(progress_plan(planned));
+    }
     let mut printer = StartPrinter {
         console,
         args: &args,
@@ -535,8 +670,16 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     };
     // Stopped before the rate was decided (a signal at the start): the settings asked.
     let used = used.unwrap_or_else(|| run_settings_report(&args, &robot, &hardware, &settings));
+    let progress_error = log.console_error().map(str::to_string);
     let log = log.into_inner();
     report(&summary, threshold, console);
+    if summary.experiment.is_some() && !summary.stop.is_fault() {
+        console.say(&format!(
+            "next: softcbf identify --robot {} {} --out identified.toml",
+            args.robot.display(),
+            args.out.display()
+        ));
+    }
     let mut code = match summary.verdict(threshold) {
         Verdict::Safe => exit::OK,
         Verdict::Unsafe(why) => {
@@ -549,19 +692,17 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         }
     };
     // The log is closed and drawn whatever becomes of the summary, and the other way round.
-    let logged = super::log::finish(log, &args.out, settings.filter, &settings.set_point, &model);
+    // An experiment has no set point to draw or record.
+    let set_point: &[f64] = match settings.experiment {
+        Some(_) => &[],
+        None => &settings.set_point,
+    };
+    let logged = super::log::finish(log, &args.out, settings.filter, set_point, &model);
     let latency_ms = match latency {
         Some(LatencyTimer::Found { ms, .. }) => Some(ms),
         _ => None,
     };
-    let summarized = write_summary(
-        &args.out,
-        &used,
-        &settings.set_point,
-        &summary,
-        threshold,
-        latency_ms,
-    );
+    let summarized = write_summary(&args.out, &used, set_point, &summary, threshold, latency_ms);
     let mut files = Vec::new();
     for (written, what) in [
         (logged, "the log or figures"),
@@ -579,11 +720,68 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
         console.say(&format!("wrote {}", names.join(", ")));
     }
-    if let Some(error) = console.error() {
+    if let Some(error) = console.error().map(str::to_string).or(progress_error) {
         eprintln!("error: {error}; the log is in {}", args.out.display());
         code = exit::worst(code, exit::ERROR);
     }
     Ok(code)
+}
+
+/// What the experiment will do, in one line: its steps, tensions per module and length.
+fn experiment_line(experiment: &Experiment) -> String {
+    let list = |values: &[f64]| {
+        values
+            .iter()
+            .map(|v| format!("{v:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let report = experiment.report();
+    let [least, most] = experiment.expected_length();
+    match experiment.kind() {
+        ExperimentKind::Static => format!(
+            "experiment: static, {} tension sets (base b + amplitude a on single tendons, \
+             pairs, all three), b = [{}] N, a = [{}] N per module; each held until at rest \
+             (within {} m for {} s, at most {} s), then {} s of rest rows; {least:.0} to \
+             {most:.0} s",
+            report.steps,
+            list(&report.base_tension),
+            list(&report.amplitude),
+            report.settings.rest_threshold,
+            report.settings.quiet_window,
+            report.settings.step_time,
+            report.settings.rest_window,
+        ),
+        ExperimentKind::Dynamic => format!(
+            "experiment: dynamic, {least:.0} s: multisines of amplitude [{}] N per module, \
+             {} lines each from {:.2} to {:.2} Hz, around {} operating points from [{}] N",
+            list(&report.amplitude),
+            report
+                .lines_per_servo
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join("/"),
+            report.band[0],
+            report.band[1],
+            report.steps,
+            list(&report.base_tension),
+        ),
+    }
+}
+
+/// What the progress lines need to know of `experiment`.
+fn progress_plan(experiment: &Experiment) -> ExperimentProgress {
+    let report = experiment.report();
+    let s = &report.settings;
+    ExperimentProgress {
+        kind: experiment.kind(),
+        steps: report.steps,
+        step_length: match experiment.kind() {
+            ExperimentKind::Static => s.settle_time.max(s.quiet_window) + s.rest_window,
+            ExperimentKind::Dynamic => experiment.expected_length()[0] / report.steps.max(1) as f64,
+        },
+    }
 }
 
 /// Every setting of a run, with where it came from (command line, robot file, built-in).
@@ -623,17 +821,28 @@ pub fn run_settings_report(
         gains: gains.report(nq),
         safety: Sourced::new(hardware.safety.unwrap_or_default(), hold_source),
         control_period: Sourced::new(1.0 / settings.rate, given(args.rate.is_some())),
-        duration: settings
-            .duration
-            .map(|d| Sourced::new(d, Source::CommandLine)),
-        reference: Sourced::new(
-            format!("set point {}", vector_text(&settings.set_point)),
-            if reference_source == Source::CommandLine {
-                Source::CommandLine
-            } else {
-                Source::RobotFile
-            },
-        ),
+        duration: match &settings.experiment {
+            Some(experiment) => experiment
+                .length()
+                .map(|d| Sourced::new(d, given(args.duration.is_some()))),
+            None => settings
+                .duration
+                .map(|d| Sourced::new(d, Source::CommandLine)),
+        },
+        reference: match &settings.experiment {
+            Some(experiment) => Sourced::new(
+                format!("experiment {}", experiment.kind.name()),
+                Source::CommandLine,
+            ),
+            None => Sourced::new(
+                format!("set point {}", vector_text(&settings.set_point)),
+                if reference_source == Source::CommandLine {
+                    Source::CommandLine
+                } else {
+                    Source::RobotFile
+                },
+            ),
+        },
         integrator: None,
         record_period: None,
         plant: None,
@@ -647,7 +856,9 @@ pub fn run_settings_report(
 /// and `unit`; the deadlines (`deadline_overruns`, `hold_overruns`, `longest_period` and
 /// `longest_hold_excess` in s); the loop rate run at (`loop_rate`, Hz, and
 /// `rate_from_bus`), the bus check (`bus_check`: cycle times in s, `rate_limit` in Hz) and
-/// the adapter's `latency_timer_ms` (`null` when unknown or absent).
+/// the adapter's `latency_timer_ms` (`null` when unknown or absent); `interventions`, the
+/// ticks whose command the filter changed; `experiment` ([`experiment_json`], `null` in a
+/// run toward a set point, whose `set_point` is then `null`).
 fn write_summary(
     dir: &Path,
     settings: &SettingsReport,
@@ -674,7 +885,7 @@ fn write_summary(
         "controller": if settings.filter.value { "filter" } else { "pd" },
         "robot": settings.robot.name,
         "hardware": true,
-        "set_point": set_point,
+        "set_point": (!set_point.is_empty()).then_some(set_point),
         "verdict": verdict,
         "stopped": s.stop.to_string(),
         "ticks": s.ticks,
@@ -683,6 +894,7 @@ fn write_summary(
         "fallbacks": s.fallbacks,
         "invalid_state": s.invalid,
         "relaxed": s.relaxed,
+        "interventions": s.interventions,
         "deadline_overruns": s.deadlines.deadline_overruns,
         "hold_overruns": s.deadlines.hold_overruns,
         "longest_period": s.deadlines.longest_period,
@@ -717,12 +929,56 @@ fn write_summary(
             "retries": s.bus.retries,
         },
         "torque_off": s.torque_off.iter().map(|(id, ok)| serde_json::json!({"id": id, "confirmed": ok})).collect::<Vec<_>>(),
+        "experiment": s.experiment.as_ref().map(experiment_json),
         "settings": settings,
     });
     let path = dir.join("summary.json");
     let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
     std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(path)
+}
+
+/// An experiment in `summary.json`: `kind`, its settings (`duration`, the dynamic length
+/// or the static cap, `null` for none, in s; static: `step_time`, `settle_time`, `ramp`,
+/// `quiet_window`, `rest_window` in s, `rest_threshold` in m; dynamic: `fade` in s,
+/// `band` and `resolution` in Hz, `lines_per_servo`, `operating_points` per module in N),
+/// `base_tension` and `amplitude` per module in N, and the counts: `steps` planned,
+/// `steps_run`, `steps_at_rest`, `steps_without_rest`, `rest_rows`, `complete`.
+fn experiment_json(e: &ExperimentReport) -> serde_json::Value {
+    let s = &e.settings;
+    let mut json = serde_json::json!({
+        "kind": s.kind.name(),
+        "duration": s.duration,
+        "base_tension": e.base_tension,
+        "amplitude": e.amplitude,
+        "steps": e.steps,
+        "steps_run": e.steps_run,
+        "steps_at_rest": e.steps_at_rest,
+        "steps_without_rest": e.steps_without_rest,
+        "rest_rows": e.rest_rows,
+        "complete": e.complete,
+    });
+    let more = match s.kind {
+        ExperimentKind::Static => serde_json::json!({
+            "step_time": s.step_time,
+            "settle_time": s.settle_time,
+            "ramp": s.ramp,
+            "quiet_window": s.quiet_window,
+            "rest_window": s.rest_window,
+            "rest_threshold": s.rest_threshold,
+        }),
+        ExperimentKind::Dynamic => serde_json::json!({
+            "fade": s.fade,
+            "band": e.band,
+            "resolution": s.resolution,
+            "lines_per_servo": e.lines_per_servo,
+            "operating_points": e.operating_points,
+        }),
+    };
+    if let (Some(json), serde_json::Value::Object(more)) = (json.as_object_mut(), more) {
+        json.extend(more);
+    }
+    json
 }
 
 fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
@@ -766,9 +1022,36 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
         }
     ));
     console.say(&format!(
-        "tensions clamped: {} at f_min, {} at f_max",
-        s.clamps.low, s.clamps.high
+        "tensions clamped: {} at f_min, {} at f_max; the filter changed {} of {} commands",
+        s.clamps.low, s.clamps.high, s.interventions, s.commands
     ));
+    if let Some(e) = &s.experiment {
+        let counts = match e.settings.kind {
+            ExperimentKind::Static => format!(
+                "{} of {} steps run, {} came to rest ({} rest rows logged), {} did not within \
+                 {} s",
+                e.steps_run,
+                e.steps,
+                e.steps_at_rest,
+                e.rest_rows,
+                e.steps_without_rest,
+                e.settings.step_time
+            ),
+            ExperimentKind::Dynamic => format!(
+                "{} of {} operating points run{}",
+                e.steps_run,
+                e.steps,
+                if e.complete { ", complete" } else { "" }
+            ),
+        };
+        console.say(&format!("experiment: {}: {counts}", e.settings.kind.name()));
+        if e.steps_without_rest > 0 {
+            console.say(
+                "experiment: a step without rest has no rest rows; a noisy robot may need a \
+                 larger --rest-threshold, a slow one a longer --step-time",
+            );
+        }
+    }
     console.say(&format!(
         "bus: {} requests, {} replies, {} timeouts, {} CRC errors, {} other corrupt, {} wrong ID, {} retries",
         b.transactions, b.replies, b.timeouts, b.crc_errors, b.decode_errors, b.wrong_id, b.retries

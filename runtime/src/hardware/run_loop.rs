@@ -2,6 +2,12 @@
 //! sync write, with the safe start and safe stop of [`servo_io`], a log row every tick and
 //! a summary at the end.
 //!
+//! **Experiments.** With [`RunSettings::experiment`], the nominal command of each tick is
+//! not PD+ but the generalized force `τ = A f` of the [`Experiment`]'s tensions, passed
+//! through the same filter, tension limits and prediction ([`control::tick_feedforward`]);
+//! the log's `step` and `rest` columns say where the experiment is, and the run ends when
+//! it is over ([`StopReason::ExperimentOver`]) or by any of the stops below.
+//!
 //! **The bus first.** Once the servos are prepared (torque off, zero goal current),
 //! [`bus_check::measure`] times the loop's read-and-write cycle; a rate the bus cannot hold
 //! is refused (torque stays off), or with [`RateRule::Adapt`] (`--rate auto`) the rate it
@@ -44,7 +50,8 @@ use crate::control::{
 };
 use crate::hardware::bus_check::{self, BusTiming, RateChoice, RateRefusal};
 use crate::hardware::emulator::{wait_until, wire_time};
-use crate::hardware::mapping::{Clamps, TendonMap};
+use crate::hardware::experiment::{Experiment, Mark};
+use crate::hardware::mapping::{CLAMP_TOLERANCE, Clamps, TendonMap};
 use crate::hardware::servo_io::{self, ServoIo, ServoPort, StartError};
 use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::Model;
@@ -141,6 +148,12 @@ struct Workspace<'m> {
     tensions: Vec<f64>,
     /// The generalized force of the tensions last sent (in force until the next command).
     tau_applied: Vec<f64>,
+    /// An experiment's tensions this tick, and their generalized force (the nominal
+    /// command the filter is given).
+    experiment_tensions: Vec<f64>,
+    tau_experiment: Vec<f64>,
+    /// The experiment's mark of the last fresh tick (`None`: no experiment).
+    mark: Option<Mark>,
     currents: Vec<i16>,
     /// The Goal Current unit \[mA\] (the log's currents).
     current_unit: f64,
@@ -230,6 +243,9 @@ pub fn run_reporting<P: ServoPort>(
         barriers: vec![0.0; model.nb()],
         tensions: vec![0.0; n],
         tau_applied: vec![0.0; nq],
+        experiment_tensions: vec![0.0; n],
+        tau_experiment: vec![0.0; nq],
+        mark: None,
         currents: vec![0; n],
         current_unit: hardware.current_unit,
         zeros: vec![0.0; nq],
@@ -254,6 +270,7 @@ pub fn run_reporting<P: ServoPort>(
         fallbacks: 0,
         invalid: 0,
         relaxed: 0,
+        interventions: 0,
         deadlines: Deadlines::default(),
         clamps: Clamps::default(),
         bus: BusCounters::default(),
@@ -266,7 +283,10 @@ pub fn run_reporting<P: ServoPort>(
         torque_off: Vec::new(),
         bus_timing: None,
         rate_choice: None,
+        experiment: None,
     };
+    let tension_limits: Vec<[f64; 2]> = hardware.modules.iter().map(|m| m.tension_limits).collect();
+    let mut experiment: Option<Experiment> = None;
     let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<StopReason, RunError> {
         // Told to stop before the start (a signal while the port opened): torque stays off.
         if stop.load(Ordering::Relaxed) {
@@ -285,6 +305,13 @@ pub fn run_reporting<P: ServoPort>(
         summary.rate_choice = Some(choice);
         report.running(choice, &settings);
         controller.set_hold(1.0 / settings.rate);
+        // The experiment at the rate decided (its band depends on it), before torque on.
+        if let Some(design) = &settings.experiment {
+            experiment = Some(
+                Experiment::new(design, &model.robot, &tension_limits, settings.rate)
+                    .map_err(RunError::Setting)?,
+            );
+        }
         // A signal during the bus check: torque stays off.
         if stop.load(Ordering::Relaxed) {
             return Ok(StopReason::Interrupted);
@@ -302,8 +329,10 @@ pub fn run_reporting<P: ServoPort>(
             log,
             stop,
             &mut summary,
+            experiment.as_mut(),
         ))
     }));
+    summary.experiment = experiment.as_ref().map(Experiment::report);
     let stop_reason = match outcome {
         Ok(Ok(reason)) => reason,
         Ok(Err(error)) => {
@@ -404,6 +433,7 @@ fn control_loop<P: ServoPort>(
     log: &mut dyn RunLog,
     stop: &AtomicBool,
     summary: &mut RunSummary,
+    mut experiment: Option<&mut Experiment>,
 ) -> StopReason {
     let hardware = map.hardware();
     let baud = hardware.baud;
@@ -423,6 +453,13 @@ fn control_loop<P: ServoPort>(
     loop {
         if stop.load(Ordering::Relaxed) {
             return StopReason::Interrupted;
+        }
+        if let Some(experiment) = experiment.as_deref()
+            && experiment.finished()
+        {
+            return StopReason::ExperimentOver {
+                left: experiment.steps_left(),
+            };
         }
         if settings
             .duration
@@ -499,17 +536,41 @@ fn control_loop<P: ServoPort>(
                 if settings.predict && !predict(model, ws, age) {
                     summary.prediction_failures += 1;
                 }
-                let tick_status = control::tick(
-                    model,
-                    controller,
-                    &ws.q_used,
-                    &ws.qd_used,
-                    Reference {
-                        q: &settings.set_point,
-                        qd: &ws.zeros,
-                        qdd: &ws.zeros,
-                    },
-                );
+                let tick_status = match experiment.as_deref_mut() {
+                    // The experiment judges rest on the state read, and its tensions are
+                    // the nominal command.
+                    Some(experiment) => {
+                        ws.mark = Some(experiment.command(t, &ws.q, &mut ws.experiment_tensions));
+                        map.tau_from_tensions(&ws.experiment_tensions, &mut ws.tau_experiment);
+                        control::tick_feedforward(
+                            model,
+                            controller,
+                            &ws.q_used,
+                            &ws.qd_used,
+                            &ws.tau_experiment,
+                        )
+                    }
+                    None => control::tick(
+                        model,
+                        controller,
+                        &ws.q_used,
+                        &ws.qd_used,
+                        Reference {
+                            q: &settings.set_point,
+                            qd: &ws.zeros,
+                            qdd: &ws.zeros,
+                        },
+                    ),
+                };
+                if tick_status == TickStatus::Filtered
+                    && controller
+                        .tau()
+                        .iter()
+                        .zip(controller.tau_nom())
+                        .any(|(a, b)| (a - b).abs() > CLAMP_TOLERANCE)
+                {
+                    summary.interventions += 1;
+                }
                 clamps = map.tensions_from_tau(controller.tau(), &mut ws.tensions);
                 for (k, f) in ws.tensions.iter().enumerate() {
                     ws.currents[k] = map.current_from_tension(k, *f);
@@ -707,8 +768,8 @@ fn push_row(
         timing.hold_excess * 1e6,
         timing.gain_scale,
         timing.sampled * 1e6,
-        f64::NAN,
-        0.0,
+        ws.mark.map_or(f64::NAN, |m| m.step as f64),
+        f64::from(u8::from(fresh && ws.mark.is_some_and(|m| m.rest))),
     ];
     ws.extra[..FIXED_EXTRA].copy_from_slice(&fixed);
     let (n, nq) = (ws.tensions.len(), ws.q.len());

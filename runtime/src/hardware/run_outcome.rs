@@ -4,6 +4,7 @@
 use std::time::{Duration, Instant};
 
 use crate::hardware::bus_check::{BusTiming, RateChoice};
+use crate::hardware::experiment::ExperimentReport;
 use crate::hardware::mapping::Clamps;
 use crate::hardware::run_loop::RATE_WINDOW;
 use crate::protocol::BusCounters;
@@ -14,6 +15,12 @@ use crate::sim::{BarrierMinimum, LowestByKind};
 pub enum StopReason {
     /// The duration elapsed.
     Duration,
+    /// The identification experiment is over: every step run (`left = 0`), or its cap
+    /// (`--duration`) reached with `left` steps not run.
+    ExperimentOver {
+        /// Steps not run.
+        left: usize,
+    },
     /// A terminating signal (Ctrl-C, a closed terminal, `kill`) through the stop flag.
     Interrupted,
     /// `max_consecutive_errors` ticks in a row without a good reading.
@@ -46,7 +53,10 @@ pub enum StopReason {
 impl StopReason {
     /// Whether the run ended on a fault.
     pub fn is_fault(&self) -> bool {
-        !matches!(self, StopReason::Duration | StopReason::Interrupted)
+        !matches!(
+            self,
+            StopReason::Duration | StopReason::Interrupted | StopReason::ExperimentOver { .. }
+        )
     }
 }
 
@@ -54,6 +64,11 @@ impl std::fmt::Display for StopReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             StopReason::Duration => write!(f, "duration elapsed"),
+            StopReason::ExperimentOver { left: 0 } => write!(f, "experiment complete"),
+            StopReason::ExperimentOver { left } => write!(
+                f,
+                "experiment ended by --duration with {left} of its steps not run"
+            ),
             StopReason::Interrupted => write!(f, "interrupted"),
             StopReason::CommunicationLost { ticks, last_error } => {
                 write!(
@@ -141,6 +156,9 @@ pub struct RunSummary {
     pub invalid: u64,
     /// Ticks whose QP had to relax barrier rows.
     pub relaxed: u64,
+    /// Ticks whose command the safety filter changed (by more than
+    /// [`CLAMP_TOLERANCE`](crate::hardware::mapping::CLAMP_TOLERANCE) in some entry of `τ`).
+    pub interventions: u64,
     /// Deadline and hold overruns, and the longest period.
     pub deadlines: Deadlines,
     /// Tensions held at their limits, summed over ticks.
@@ -166,6 +184,9 @@ pub struct RunSummary {
     pub bus_timing: Option<BusTiming>,
     /// The loop rate run at, asked or chosen from the bus (`None`: not decided).
     pub rate_choice: Option<RateChoice>,
+    /// The identification experiment's design and counts (`None`: a run toward a set
+    /// point, or stopped before the experiment was built).
+    pub experiment: Option<ExperimentReport>,
 }
 
 impl RunSummary {

@@ -1,9 +1,11 @@
 //! What one `softcbf run` does: its rate (fixed, or chosen from the bus), minimum rate,
-//! duration, set point, filter, prediction, Bus Watchdog and gains, with defaults and checks.
+//! duration, set point or experiment, filter, prediction, Bus Watchdog and gains, with
+//! defaults and checks.
 
 use softcbf_description::limits::{self, Limit};
 
 use crate::hardware::bus_check::RateRule;
+use crate::hardware::experiment::ExperimentSettings;
 use crate::hardware::limits as servo;
 use crate::settings::Gains;
 
@@ -48,6 +50,9 @@ pub struct RunSettings {
     /// `K_P`, `K_D`, `p1`, `p2` with their sources; `None`: the robot file's, else the
     /// built-in paper gains ([`crate::settings::resolve_gains`] without options).
     pub gains: Option<Gains>,
+    /// An identification experiment ([`crate::hardware::experiment`]) instead of PD+
+    /// toward the set point: its tensions, through the safety filter, until it is over.
+    pub experiment: Option<ExperimentSettings>,
 }
 
 impl RunSettings {
@@ -64,6 +69,7 @@ impl RunSettings {
             predict: true,
             bus_watchdog: None,
             gains: None,
+            experiment: None,
         }
     }
 
@@ -147,6 +153,9 @@ impl RunSettings {
                     1.0 / self.rate
                 ));
             }
+        }
+        if let Some(experiment) = &self.experiment {
+            experiment.validate()?;
         }
         if self.set_point.len() != nq || self.set_point.iter().any(|v| !v.is_finite()) {
             return Err(format!("--set-point: needs {nq} finite values"));

@@ -1,14 +1,19 @@
 //! The live status line of `softcbf run` on a terminal: loop rate, lowest barrier, QP and
-//! bus fault counts, deadline overruns, redrawn a few times a second from the logged rows.
+//! bus fault counts, deadline overruns, redrawn a few times a second from the logged rows;
+//! and an experiment's progress, a line on standard output per step.
 //!
 //! It wraps the run's log ([`RunLog`]): every row goes to the log first, then updates the
 //! counts; drawing happens at most every [`REDRAW`] and only when standard error is a
-//! terminal. Nothing here touches the bus or the controller.
+//! terminal. An experiment's step lines ([`ExperimentProgress`]) are printed whatever the
+//! output is, when the log's `step` column moves on. Nothing here touches the bus or the
+//! controller.
 
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
+use crate::hardware::experiment::ExperimentKind;
 use crate::hardware::log::RunLog;
+use crate::output::Console;
 use crate::record::Row;
 
 /// Least time between two redraws.
@@ -21,6 +26,101 @@ const STATUS: usize = 1;
 const ATTEMPTS: usize = 2;
 /// Index of the `overrun` extra column (1: a deadline overrun).
 const OVERRUN: usize = 8;
+/// Index of the `step` extra column (an experiment's step; NaN in a plain run).
+const STEP: usize = 17;
+/// Index of the `rest` extra column (1: a row of a static step's rest state).
+const REST: usize = 18;
+
+/// What the progress lines know of an experiment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExperimentProgress {
+    /// Static or dynamic.
+    pub kind: ExperimentKind,
+    /// Steps planned.
+    pub steps: usize,
+    /// How long a step takes \[s\]: a dynamic operating point's share of the length; the
+    /// least a static set takes (held, then its rest window).
+    pub step_length: f64,
+}
+
+/// Where an experiment is, as the logged rows tell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct StepTracker {
+    plan: ExperimentProgress,
+    /// The step of the last row, when it began \[s\], and its rest rows.
+    step: Option<usize>,
+    began: f64,
+    rest_rows: u64,
+    /// The first row's time \[s\].
+    start: Option<f64>,
+}
+
+impl StepTracker {
+    /// The line for the step just ended (at time `t`), if one did.
+    fn ended(&self, t: f64, last: bool) -> Option<String> {
+        let step = self.step?;
+        let plan = &self.plan;
+        let left_steps = plan.steps.saturating_sub(step + 1);
+        let left = if last || left_steps == 0 {
+            String::new()
+        } else {
+            let prefix = match plan.kind {
+                ExperimentKind::Static => "at least ",
+                ExperimentKind::Dynamic => "",
+            };
+            format!(
+                "; {left_steps} to go, {prefix}{:.0} s",
+                left_steps as f64 * plan.step_length
+            )
+        };
+        let held = t - self.began;
+        Some(match plan.kind {
+            ExperimentKind::Static if self.rest_rows > 0 => format!(
+                "experiment: step {} of {}: at rest, {} rows logged ({held:.1} s){left}",
+                step + 1,
+                plan.steps,
+                self.rest_rows
+            ),
+            ExperimentKind::Static if last => format!(
+                "experiment: step {} of {}: not at rest when the run stopped ({held:.1} s)",
+                step + 1,
+                plan.steps
+            ),
+            ExperimentKind::Static => format!(
+                "experiment: step {} of {}: no rest within {held:.1} s{left}",
+                step + 1,
+                plan.steps
+            ),
+            ExperimentKind::Dynamic => format!(
+                "experiment: operating point {} of {} done (t = {:.1} s){left}",
+                step + 1,
+                plan.steps,
+                t - self.start.unwrap_or(t)
+            ),
+        })
+    }
+
+    /// Adds a row; the line of a step that ended with it.
+    fn add(&mut self, row: &Row<'_>) -> Option<String> {
+        let step = row.extra.get(STEP).copied().unwrap_or(f64::NAN);
+        if !(step >= 0.0) {
+            return None;
+        }
+        let step = step as usize;
+        self.start.get_or_insert(row.t);
+        let mut line = None;
+        if self.step != Some(step) {
+            line = self.ended(row.t, false);
+            self.step = Some(step);
+            self.began = row.t;
+            self.rest_rows = 0;
+        }
+        if row.extra.get(REST).copied() == Some(1.0) {
+            self.rest_rows += 1;
+        }
+        line
+    }
+}
 
 /// Counts shown on the status line.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -109,6 +209,10 @@ pub struct StatusLine<L: RunLog> {
     enabled: bool,
     last_draw: Option<(Instant, u64)>,
     drawn: bool,
+    experiment: Option<StepTracker>,
+    /// The last row's time \[s\].
+    last_t: f64,
+    console: Console,
 }
 
 impl<L: RunLog> StatusLine<L> {
@@ -120,7 +224,38 @@ impl<L: RunLog> StatusLine<L> {
             enabled: enabled && std::io::stderr().is_terminal(),
             last_draw: None,
             drawn: false,
+            experiment: None,
+            last_t: 0.0,
+            console: Console::new(),
         }
+    }
+
+    /// Also prints a line on standard output as each step of the experiment `plan` ends,
+    /// and shows the step on the status line.
+    pub fn with_experiment(mut self, plan: ExperimentProgress) -> StatusLine<L> {
+        self.experiment = Some(StepTracker {
+            plan,
+            step: None,
+            began: 0.0,
+            rest_rows: 0,
+            start: None,
+        });
+        self
+    }
+
+    /// The first failure to write a progress line (standard output gone bad).
+    pub fn console_error(&self) -> Option<&str> {
+        self.console.error()
+    }
+
+    /// Prints a progress line on standard output, the status line cleared first.
+    fn say(&mut self, line: &str) {
+        if self.drawn {
+            let mut stderr = std::io::stderr().lock();
+            let _ = write!(stderr, "\r\x1b[K");
+            let _ = stderr.flush();
+        }
+        self.console.say(line);
     }
 
     /// The counts so far.
@@ -128,8 +263,17 @@ impl<L: RunLog> StatusLine<L> {
         &self.counts
     }
 
-    /// Ends the line (so that later output starts on a fresh one) and returns the log.
-    pub fn into_inner(self) -> L {
+    /// Ends the line (so that later output starts on a fresh one), prints the last step's
+    /// line of an experiment, and returns the log.
+    pub fn into_inner(mut self) -> L {
+        if let Some(line) = self
+            .experiment
+            .as_ref()
+            .and_then(|e| e.ended(self.last_t, true))
+        {
+            self.say(&line);
+            self.drawn = false;
+        }
         if self.drawn {
             let mut stderr = std::io::stderr().lock();
             let _ = writeln!(stderr);
@@ -152,7 +296,15 @@ impl<L: RunLog> StatusLine<L> {
         self.last_draw = Some((now, self.counts.ticks));
         let mut stderr = std::io::stderr().lock();
         // `\r` and clear-to-end-of-line: the line is redrawn in place.
-        let _ = write!(stderr, "\r\x1b[K{}", self.counts.line(t));
+        let step = match &self.experiment {
+            Some(StepTracker {
+                plan,
+                step: Some(step),
+                ..
+            }) => format!("  step {}/{}", step + 1, plan.steps),
+            _ => String::new(),
+        };
+        let _ = write!(stderr, "\r\x1b[K{}{step}", self.counts.line(t));
         let _ = stderr.flush();
         self.drawn = true;
     }
@@ -162,6 +314,10 @@ impl<L: RunLog> RunLog for StatusLine<L> {
     fn push(&mut self, row: &Row<'_>) -> Result<(), String> {
         let logged = self.inner.push(row);
         self.counts.add(row);
+        self.last_t = row.t;
+        if let Some(line) = self.experiment.as_mut().and_then(|e| e.add(row)) {
+            self.say(&line);
+        }
         if self.enabled {
             self.draw(row.t);
         }
