@@ -1181,6 +1181,43 @@ mod tests {
     }
 
     #[test]
+    fn an_experiment_takes_the_duration_and_refuses_a_set_point() {
+        let (settings, report) =
+            settings_of(&["--experiment", "dynamic", "--duration", "30"]).unwrap();
+        // The experiment ends the run, at its own length.
+        assert_eq!(settings.duration, None);
+        let experiment = settings.experiment.unwrap();
+        assert_eq!(experiment.kind, ExperimentKind::Dynamic);
+        assert_eq!(experiment.length(), Some(30.0));
+        assert_eq!(
+            report.duration,
+            Some(Sourced::new(30.0, Source::CommandLine))
+        );
+        assert_eq!(
+            report.reference,
+            Sourced::new("experiment dynamic".to_string(), Source::CommandLine)
+        );
+        let (settings, report) =
+            settings_of(&["--experiment", "static", "--amplitude", "0.3,0.9"]).unwrap();
+        let experiment = settings.experiment.unwrap();
+        assert_eq!(experiment.amplitude, Some(vec![0.3, 0.9]));
+        assert_eq!(experiment.length(), None);
+        assert_eq!(report.duration, None);
+        // A plain run has none.
+        let (settings, _) = settings_of(&["--duration", "3"]).unwrap();
+        assert_eq!((settings.duration, settings.experiment), (Some(3.0), None));
+        let error = settings_of(&["--experiment", "static", "--kp", "3"])
+            .err()
+            .unwrap();
+        assert!(error.starts_with("--kp: not with --experiment"), "{error}");
+        let error = settings_of(&["--step-time", "3"]).err().unwrap();
+        assert!(
+            error.starts_with("--step-time: an option of --experiment"),
+            "{error}"
+        );
+    }
+
+    #[test]
     fn run_gains_are_checked_by_the_files_rules() {
         let error = settings_of(&["--kd", "-3"]).err().unwrap();
         assert!(error.starts_with("--kd: must be ≥ 0"), "{error}");

@@ -608,7 +608,7 @@ impl Experiment {
                         .min(span / (2.0 + 0.5 * (points - 1.0)))
                 }
             };
-            if !(a > 0.0) {
+            if a.is_nan() || a <= 0.0 {
                 return Err(format!(
                     "module {}: the robot file's numbers leave it no room at f_min = {} N \
                      (straight, it sits at δL = {:.4} m under {:.3} N; its barriers allow \
@@ -974,5 +974,545 @@ impl Experiment {
             rest_rows: self.rest_rows,
             complete,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::Tolerances;
+    use crate::model::Model;
+    use crate::plant::Plant;
+    use nalgebra::{DMatrix, DVector};
+    use softcbf_description::barriers::BarrierKind;
+    use softcbf_description::uncertainty::{ModuleFactors, scaled};
+
+    const RATE: f64 = 33.0;
+
+    fn example() -> (Robot, Vec<[f64; 2]>) {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/hardware-example.toml"
+        );
+        let robot = Robot::load(std::path::Path::new(path)).unwrap();
+        let hardware = crate::hardware::description::load(&robot).unwrap().unwrap();
+        let limits = hardware.modules.iter().map(|m| m.tension_limits).collect();
+        (robot, limits)
+    }
+
+    fn experiment(settings: &ExperimentSettings) -> Experiment {
+        let (robot, limits) = example();
+        Experiment::new(settings, &robot, &limits, RATE).unwrap()
+    }
+
+    /// `τ_i = A_i f_i` with `A_i`'s columns `(cos ψ_k, sin ψ_k, −1)` (docs/model.md §6).
+    fn generalized_force(robot: &Robot, f: &[f64], tau: &mut [f64]) {
+        for (i, module) in robot.modules.iter().enumerate() {
+            let psi = &module.tendon_angles;
+            let f = &f[3 * i..3 * i + 3];
+            tau[3 * i] = (0..3).map(|k| psi[k].cos() * f[k]).sum();
+            tau[3 * i + 1] = (0..3).map(|k| psi[k].sin() * f[k]).sum();
+            tau[3 * i + 2] = -f.iter().sum::<f64>();
+        }
+    }
+
+    /// One module's static identification in its simplest form: equilibria of the linear
+    /// statics `K q = A diag(I) g − (0, 0, W)` of a true module `truth = (κθ/d², κL, g1,
+    /// g2, g3)` at the currents `I = f / g_file` of `sets`, and the regressor of the
+    /// unknowns with its right-hand side (`κθ/d² Δx − Σ cos ψ_k I_k g_k = 0`, the same in
+    /// `y`, `κL δL + Σ I_k g_k = −W`).
+    fn static_regressor(
+        psi: &[f64],
+        sets: &[[f64; 3]],
+        truth: [f64; 5],
+        load: f64,
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let gain_file = 0.04;
+        let mut a = DMatrix::zeros(3 * sets.len(), 5);
+        let mut rhs = DVector::zeros(3 * sets.len());
+        for (s, f) in sets.iter().enumerate() {
+            let current: Vec<f64> = f.iter().map(|f| f / gain_file).collect();
+            let pulled: Vec<f64> = (0..3).map(|k| truth[2 + k] * current[k]).collect();
+            let dx = (0..3).map(|k| psi[k].cos() * pulled[k]).sum::<f64>() / truth[0];
+            let dy = (0..3).map(|k| psi[k].sin() * pulled[k]).sum::<f64>() / truth[0];
+            let dl = -(load + pulled.iter().sum::<f64>()) / truth[1];
+            a[(3 * s, 0)] = dx;
+            a[(3 * s + 1, 0)] = dy;
+            a[(3 * s + 2, 1)] = dl;
+            for k in 0..3 {
+                a[(3 * s, 2 + k)] = -psi[k].cos() * current[k];
+                a[(3 * s + 1, 2 + k)] = -psi[k].sin() * current[k];
+                a[(3 * s + 2, 2 + k)] = current[k];
+            }
+            rhs[3 * s + 2] = -load;
+        }
+        (a, rhs)
+    }
+
+    /// The condition number of `a` with unit columns.
+    fn condition(a: &DMatrix<f64>) -> f64 {
+        let mut scaled = a.clone();
+        for mut column in scaled.column_iter_mut() {
+            let norm = column.norm();
+            column /= norm;
+        }
+        let s = scaled.svd(false, false).singular_values;
+        s.max() / s.min()
+    }
+
+    #[test]
+    fn static_sets_move_every_tendon_on_its_own_and_the_total_against_the_weight() {
+        let (robot, limits) = example();
+        let e = experiment(&ExperimentSettings::new(ExperimentKind::Static));
+        assert_eq!(e.steps(), 16);
+        let room = module_room(&robot, &limits);
+        for (i, module) in robot.modules.iter().enumerate() {
+            let [f_min, f_max] = limits[i];
+            let (b, a) = (e.base_tension()[i], e.amplitude()[i]);
+            let sets: Vec<[f64; 3]> = (0..e.steps())
+                .map(|k| {
+                    let s = &e.set(k).unwrap()[3 * i..3 * i + 3];
+                    [s[0], s[1], s[2]]
+                })
+                .collect();
+            // First and last: the base, on every tendon.
+            assert_eq!(sets[0], sets[15]);
+            assert_eq!(sets[0], [b; 3]);
+            for f in sets.iter().flatten() {
+                assert!((f_min..=f_max).contains(f), "module {i}: {f} N");
+            }
+            // Every set adds at most `a` in all, within the room chosen for the module.
+            for f in &sets {
+                let extra: f64 = f.iter().map(|f| f - b).sum();
+                assert!((0.0..=a * (1.0 + 1e-12)).contains(&extra), "{extra} > {a}");
+            }
+            assert!(a <= room[i].extra_tension * (1.0 + 1e-12));
+            // Each tendon takes at least three tensions.
+            for k in 0..3 {
+                let mut levels: Vec<f64> = sets.iter().map(|f| f[k]).collect();
+                levels.sort_by(f64::total_cmp);
+                levels.dedup_by(|x, y| (*x - *y).abs() < 1e-12);
+                assert!(levels.len() >= 3, "tendon {k}: {levels:?}");
+            }
+            // The equilibria determine both stiffnesses and the three gains: a true module
+            // 5 to 20 % off is recovered from them, and the regressor is well conditioned.
+            let d = module.tendon_radius;
+            let truth = [
+                1.2 * module.bending_stiffness / (d * d),
+                0.8 * module.axial_stiffness,
+                0.04 * 1.1,
+                0.04 * 0.9,
+                0.04 * 1.05,
+            ];
+            let psi = &module.tendon_angles;
+            let (regressor, rhs) = static_regressor(psi, &sets, truth, room[i].load);
+            let kappa = condition(&regressor);
+            assert!(kappa < 100.0, "module {i}: condition {kappa}");
+            let estimate = regressor.svd(true, true).solve(&rhs, 1e-15).unwrap();
+            for c in 0..5 {
+                assert!(
+                    (estimate[c] / truth[c] - 1.0).abs() < 1e-9,
+                    "module {i} unknown {c}: {} vs {}",
+                    estimate[c],
+                    truth[c]
+                );
+            }
+            // Sets pulling all three tendons alike cannot tell the gains apart: the same
+            // check fails without the single tendons and pairs.
+            let symmetric = [sets[0], sets[7], sets[14], sets[15]];
+            let (regressor, _) = static_regressor(psi, &symmetric, truth, room[i].load);
+            assert!(condition(&regressor) > 1e8);
+        }
+    }
+
+    /// A static experiment driven at [`RATE`] by readings `q(step, time into the step,
+    /// sample)` until it finishes or `limit` seconds pass; every sample's `(t, step, q,
+    /// mark)`.
+    fn drive(
+        e: &mut Experiment,
+        q: impl Fn(usize, f64, usize) -> [f64; 6],
+        limit: f64,
+    ) -> Vec<(f64, usize, [f64; 6], Mark)> {
+        let mut tensions = [0.0; 6];
+        let mut samples = Vec::new();
+        let (mut step, mut start) = (0, 0.0);
+        let mut k = 0;
+        while !e.finished() {
+            let t = k as f64 / RATE;
+            assert!(t < limit, "not finished after {limit} s");
+            let reading = q(step, t - start, k);
+            let mark = e.command(t, &reading, &mut tensions);
+            if mark.step != step {
+                (step, start) = (mark.step, t);
+            }
+            samples.push((t, step, reading, mark));
+            k += 1;
+        }
+        samples
+    }
+
+    #[test]
+    fn rest_is_found_once_the_motion_has_died_down_within_the_threshold() {
+        let settings = ExperimentSettings::new(ExperimentKind::Static);
+        let mut e = experiment(&settings);
+        let (amplitude, omega) = (5e-3, 25.0);
+        // Step k rings down with time constant 0.1 + 0.05 k s about its own equilibrium.
+        let tau = |step: usize| 0.1 + 0.05 * step as f64;
+        let q = |step: usize, into: f64, _| {
+            std::array::from_fn(|c| {
+                let equilibrium = 1e-3 * (step as f64 + c as f64);
+                let phase = c as f64;
+                equilibrium + amplitude * (-into / tau(step)).exp() * (omega * into + phase).cos()
+            })
+        };
+        let samples = drive(&mut e, q, 200.0);
+        assert_eq!(e.steps_at_rest(), 16);
+        assert_eq!(e.steps_without_rest(), 0);
+        let dt = 1.0 / RATE;
+        for step in 0..16 {
+            let rows: Vec<_> = samples.iter().filter(|s| s.1 == step).collect();
+            let start = rows[0].0;
+            let rest: Vec<_> = rows.iter().filter(|s| s.3.rest).collect();
+            // The rest window's rows: 1 s of them.
+            assert!(
+                (33..=34).contains(&rest.len()),
+                "step {step}: {}",
+                rest.len()
+            );
+            let onset = rest[0].0;
+            assert!(onset - start >= settings.settle_time - 1e-9);
+            // Over the quiet window before the onset, each coordinate moved less than the
+            // threshold (brute force over the samples).
+            for c in 0..6 {
+                let window: Vec<f64> = rows
+                    .iter()
+                    .filter(|s| s.0 >= onset - settings.quiet_window - 1e-9 && s.0 <= onset)
+                    .map(|s| s.2[c])
+                    .collect();
+                let span = window.iter().copied().fold(f64::MIN, f64::max)
+                    - window.iter().copied().fold(f64::MAX, f64::min);
+                assert!(span < settings.rest_threshold, "step {step}: span {span}");
+            }
+            // Not late: from t_q on, the ringing stays within half the threshold of the
+            // equilibrium; the last stretch began by max(settle, t_q + quiet).
+            let t_q = tau(step) * (2.0 * amplitude / settings.rest_threshold).ln();
+            let latest = settings.settle_time.max(t_q + settings.quiet_window)
+                + settings.quiet_window
+                + 2.0 * dt;
+            assert!(
+                onset - start <= latest,
+                "step {step}: rest after {} s, expected by {latest} s",
+                onset - start
+            );
+        }
+        assert!(e.report().complete);
+        assert_eq!(e.report().rest_rows, e.rest_rows());
+    }
+
+    #[test]
+    fn a_step_that_never_comes_to_rest_is_left_after_the_step_time() {
+        let mut settings = ExperimentSettings::new(ExperimentKind::Static);
+        settings.step_time = 2.0;
+        let mut e = experiment(&settings);
+        // Jitter of twice the threshold, every other sample.
+        let threshold = settings.rest_threshold;
+        let q = |_, _, k: usize| {
+            [if k.is_multiple_of(2) {
+                threshold
+            } else {
+                -threshold
+            }; 6]
+        };
+        let samples = drive(&mut e, q, 100.0);
+        assert!(samples.iter().all(|s| !s.3.rest));
+        assert_eq!((e.steps_at_rest(), e.steps_without_rest()), (0, 16));
+        assert_eq!(e.rest_rows(), 0);
+        let start = |step: usize| samples.iter().find(|s| s.1 == step).unwrap().0;
+        for step in 0..15 {
+            // The next step starts at the first sample 2 s after this one's start.
+            let held = start(step + 1) - start(step);
+            assert!(
+                (2.0 - 1e-9..2.0 + 1.0 / RATE).contains(&held),
+                "step {step}: {held} s"
+            );
+        }
+        let report = e.report();
+        assert!(report.complete);
+        assert_eq!(report.steps_run, 16);
+    }
+
+    #[test]
+    fn an_experiment_finishes_at_its_length_or_its_cap() {
+        let mut settings = ExperimentSettings::new(ExperimentKind::Static);
+        settings.duration = Some(5.0);
+        let mut e = experiment(&settings);
+        let samples = drive(&mut e, |_, _, _| [0.0; 6], 10.0);
+        let last = samples.last().unwrap().0;
+        assert!((5.0..5.0 + 1.0 / RATE).contains(&last), "{last}");
+        // Steps of 2 s (settle 1 s, rest 1 s): two done, the third cut.
+        assert_eq!(e.steps_at_rest(), 2);
+        assert_eq!(e.steps_left(), 14);
+        assert!(!e.report().complete);
+
+        let mut settings = ExperimentSettings::new(ExperimentKind::Dynamic);
+        settings.duration = Some(6.0);
+        let mut e = experiment(&settings);
+        let mut tensions = [0.0; 6];
+        let mut steps = Vec::new();
+        for k in 0..1000 {
+            // Starting at t = 100 s: the experiment's own clock starts at its first call.
+            let t = 100.0 + k as f64 * 0.01;
+            let mark = e.command(t, &[0.0; 6], &mut tensions);
+            assert!(!mark.rest);
+            if e.finished() {
+                assert!((t - 106.0).abs() < 0.011, "finished at {t}");
+                break;
+            }
+            steps.push(mark.step);
+        }
+        assert!(e.finished());
+        assert_eq!(steps[0], 0);
+        assert_eq!(*steps.last().unwrap(), 2);
+        assert!(steps.windows(2).all(|w| w[1] == w[0] || w[1] == w[0] + 1));
+        let report = e.report();
+        assert!(report.complete);
+        assert_eq!((report.steps, report.steps_run, e.steps_left()), (3, 3, 0));
+    }
+
+    #[test]
+    fn dynamic_tensions_stay_in_their_limits_and_reach_the_amplitude() {
+        let (_, limits) = example();
+        let settings = ExperimentSettings::new(ExperimentKind::Dynamic);
+        let mut e = experiment(&settings);
+        let report = e.report();
+        let mut tensions = [0.0; 6];
+        let mut largest = [0.0_f64; 6];
+        let dt = 1e-3;
+        let share = DEFAULT_DYNAMIC_DURATION / 3.0;
+        for k in 0..(DEFAULT_DYNAMIC_DURATION / dt) as usize {
+            let t = k as f64 * dt;
+            let mark = e.command(t, &[0.0; 6], &mut tensions);
+            let into = t - mark.step as f64 * share;
+            for (j, &f) in tensions.iter().enumerate() {
+                let [f_min, f_max] = limits[j / 3];
+                assert!((f_min..=f_max).contains(&f), "servo {j} at {t} s: {f} N");
+                if into > settings.fade {
+                    // Past the fade: the operating point's base, plus at most `a`.
+                    let base = report.operating_points[j / 3][mark.step];
+                    let a = report.amplitude[j / 3];
+                    assert!((f - base).abs() <= a, "servo {j} at {t} s: {f} N");
+                    largest[j] = largest[j].max((f - base).abs() / a);
+                }
+            }
+        }
+        for (j, &reached) in largest.iter().enumerate() {
+            assert!(
+                reached > 0.95,
+                "servo {j} reached {reached} of its amplitude"
+            );
+        }
+        for (i, points) in report.operating_points.iter().enumerate() {
+            let a = report.amplitude[i];
+            assert!(points[0] - a >= limits[i][0] - 1e-12);
+            assert!(points.windows(2).all(|w| w[1] > w[0]), "{points:?}");
+        }
+    }
+
+    #[test]
+    fn each_servo_has_its_own_lines_of_the_grid() {
+        let settings = ExperimentSettings::new(ExperimentKind::Dynamic);
+        let mut e = experiment(&settings);
+        let report = e.report();
+        let f0 = settings.resolution;
+        // One period 1/f0 of the second operating point, past its fade.
+        let samples = 1000;
+        let dt = 1.0 / (f0 * samples as f64);
+        let mut tensions = [0.0; 6];
+        e.command(0.0, &[0.0; 6], &mut tensions);
+        let mut deviation = vec![[0.0; 6]; samples];
+        for (s, d) in deviation.iter_mut().enumerate() {
+            let t = 21.0 + s as f64 * dt;
+            let mark = e.command(t, &[0.0; 6], &mut tensions);
+            assert_eq!(mark.step, 1);
+            for j in 0..6 {
+                d[j] = tensions[j] - report.operating_points[j / 3][1];
+            }
+        }
+        // The grid k·f0 from 0.2 to 5 Hz (at 33 Hz, 33/6 > 5), dealt out in turn.
+        let (k_lo, k_hi) = (2, 50);
+        for j in 0..6 {
+            let a = report.amplitude[j / 3];
+            for k in 1..=80 {
+                let (mut re, mut im) = (0.0, 0.0);
+                for (s, d) in deviation.iter().enumerate() {
+                    let angle = 2.0 * PI * k as f64 * f0 * s as f64 * dt;
+                    re += d[j] * angle.cos();
+                    im += d[j] * angle.sin();
+                }
+                let magnitude = 2.0 * re.hypot(im) / samples as f64;
+                let own = (k_lo..=k_hi).contains(&k) && (k - k_lo) % 6 == j;
+                if own {
+                    assert!(magnitude > 0.05 * a, "servo {j} line {k}: {magnitude}");
+                } else {
+                    assert!(magnitude < 1e-9 * a, "servo {j} line {k}: {magnitude}");
+                }
+            }
+            // No two servos share a frequency: uncorrelated over the period.
+            for other in 0..j {
+                let product: f64 = deviation.iter().map(|d| d[j] * d[other]).sum();
+                let scale: f64 = deviation.iter().map(|d| d[j] * d[j]).sum::<f64>().sqrt()
+                    * deviation
+                        .iter()
+                        .map(|d| d[other] * d[other])
+                        .sum::<f64>()
+                        .sqrt();
+                assert!(product.abs() < 1e-9 * scale, "servos {j} and {other}");
+            }
+        }
+        assert_eq!(report.band, [0.2, 5.0]);
+        assert_eq!(report.lines_per_servo, vec![9, 8, 8, 8, 8, 8]);
+    }
+
+    /// The lowest elongation barrier of each module at `q`.
+    fn elongation_barriers(model: &Model, q: &[f64]) -> (Vec<f64>, f64) {
+        let mut b = vec![0.0; model.nb()];
+        model.generated.barriers(&model.params, q, &mut b);
+        let table = model.generated.barrier_table();
+        let mut per_module = vec![f64::INFINITY; model.n_modules()];
+        for (info, &value) in table.iter().zip(&b) {
+            if info.kind == BarrierKind::ElongationMin {
+                per_module[info.module] = per_module[info.module].min(value);
+            }
+        }
+        (per_module, b.iter().copied().fold(f64::INFINITY, f64::min))
+    }
+
+    /// Equilibrium of `model` under constant tensions `f`, reached from the straight pose
+    /// by its own damping.
+    fn equilibrium(model: &Model, plant: &mut Plant<'_>, f: &[f64]) -> Vec<f64> {
+        plant.reset(&[0.0; 6], &[0.0; 6], 0.0);
+        generalized_force(&model.robot, f, plant.tau_mut());
+        plant.advance(15.0).unwrap();
+        assert!(
+            plant.qd().iter().all(|v| v.abs() < 1e-6),
+            "{:?}",
+            plant.qd()
+        );
+        plant.q().to_vec()
+    }
+
+    /// The defaults, checked on the full nonlinear model: the file's own robot and one
+    /// 30 % softer keep every static set's equilibrium within half of
+    /// the compression room they have at `f_min`, and the dynamic experiment's whole
+    /// course (the file's robot under the tensions held for each tick) above every
+    /// barrier and within half of that room too.
+    #[test]
+    fn the_defaults_keep_half_of_the_room_on_the_model() {
+        let (robot, limits) = example();
+        // 30 % softer in both stiffnesses.
+        let softer = 0.7;
+        let soft = scaled(
+            &robot,
+            &[ModuleFactors {
+                stiffness: [softer; 2],
+                ..ModuleFactors::NOMINAL
+            }; 2],
+        )
+        .unwrap();
+        let static_experiment = experiment(&ExperimentSettings::new(ExperimentKind::Static));
+        for plant_robot in [robot.clone(), soft] {
+            let model = Model::new(plant_robot).unwrap();
+            let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
+            let f_min: Vec<f64> = (0..6).map(|j| limits[j / 3][0]).collect();
+            let q = equilibrium(&model, &mut plant, &f_min);
+            let (room, _) = elongation_barriers(&model, &q);
+            assert!(room.iter().all(|&r| r > 0.0), "{room:?}");
+            for k in 0..static_experiment.steps() {
+                let q = equilibrium(&model, &mut plant, static_experiment.set(k).unwrap());
+                let (left, lowest) = elongation_barriers(&model, &q);
+                assert!(lowest > 0.0, "set {k}: {lowest}");
+                for i in 0..2 {
+                    assert!(
+                        left[i] >= 0.5 * room[i],
+                        "{}: set {k} leaves module {} {} of {} m",
+                        model.robot.name,
+                        i + 1,
+                        left[i],
+                        room[i]
+                    );
+                }
+            }
+        }
+
+        let model = Model::new(robot.clone()).unwrap();
+        let mut plant = Plant::new(&model, Tolerances::default()).unwrap();
+        let f_min: Vec<f64> = (0..6).map(|j| limits[j / 3][0]).collect();
+        let q = equilibrium(&model, &mut plant, &f_min);
+        let (room, _) = elongation_barriers(&model, &q);
+        let mut e = experiment(&ExperimentSettings::new(ExperimentKind::Dynamic));
+        let mut tensions = [0.0; 6];
+        let dt = 1.0 / RATE;
+        let mut lowest = [f64::INFINITY; 2];
+        let mut overall = f64::INFINITY;
+        let mut k = 0;
+        while !e.finished() {
+            e.command(k as f64 * dt, plant.q(), &mut tensions);
+            generalized_force(&robot, &tensions, plant.tau_mut());
+            plant.advance(dt).unwrap();
+            let (left, least) = elongation_barriers(&model, plant.q());
+            overall = overall.min(least);
+            for i in 0..2 {
+                lowest[i] = lowest[i].min(left[i]);
+            }
+            k += 1;
+        }
+        assert!(overall > 0.0);
+        for i in 0..2 {
+            assert!(
+                lowest[i] >= 0.5 * room[i],
+                "module {}: {lowest:?} of {room:?}",
+                i + 1
+            );
+        }
+    }
+
+    #[test]
+    fn settings_out_of_range_or_beyond_the_tension_limits_are_refused() {
+        let (robot, limits) = example();
+        let refused = |settings: &ExperimentSettings| {
+            Experiment::new(settings, &robot, &limits, RATE)
+                .err()
+                .unwrap()
+        };
+        let mut s = ExperimentSettings::new(ExperimentKind::Static);
+        s.amplitude = Some(vec![50.0]);
+        let message = refused(&s);
+        assert!(message.starts_with("--amplitude: module 1"), "{message}");
+        s.amplitude = Some(vec![0.5, 0.5, 0.5]);
+        assert!(refused(&s).contains("one value or one per module (2), got 3"));
+        s.amplitude = Some(vec![-1.0]);
+        assert!(refused(&s).starts_with("--amplitude: must be > 0"));
+        s.amplitude = None;
+        s.base_tension = Some(vec![0.1]);
+        assert!(refused(&s).starts_with("--base-tension: module 1"));
+        s.base_tension = None;
+        s.step_time = 0.8;
+        assert!(refused(&s).starts_with("--step-time: 0.8 s leaves no time"));
+        s.step_time = f64::NAN;
+        assert!(refused(&s).starts_with("--step-time: must be a finite number"));
+        let mut d = ExperimentSettings::new(ExperimentKind::Dynamic);
+        d.duration = Some(2.0);
+        assert!(refused(&d).starts_with("--duration: 2 s gives each"));
+        d.duration = None;
+        let slow = Experiment::new(&d, &robot, &limits, 3.0).err().unwrap();
+        assert!(slow.starts_with("--rate: at 3 Hz"), "{slow}");
+        // Given amplitudes and bases, one per module, within the limits: taken as given.
+        d.amplitude = Some(vec![0.3, 1.0]);
+        d.base_tension = Some(vec![0.5, 1.2]);
+        let e = Experiment::new(&d, &robot, &limits, RATE).unwrap();
+        assert_eq!(
+            (e.amplitude(), e.base_tension()),
+            (&[0.3, 1.0][..], &[0.5, 1.2][..])
+        );
     }
 }

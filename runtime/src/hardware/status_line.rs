@@ -103,7 +103,7 @@ impl StepTracker {
     /// Adds a row; the line of a step that ended with it.
     fn add(&mut self, row: &Row<'_>) -> Option<String> {
         let step = row.extra.get(STEP).copied().unwrap_or(f64::NAN);
-        if !(step >= 0.0) {
+        if step.is_nan() || step < 0.0 {
             return None;
         }
         let step = step as usize;
@@ -340,6 +340,58 @@ mod tests {
         assert_eq!(names[STATUS], "status");
         assert_eq!(names[ATTEMPTS], "attempts");
         assert_eq!(names[OVERRUN], "overrun");
+        assert_eq!(names[STEP], "step");
+        assert_eq!(names[REST], "rest");
+    }
+
+    #[test]
+    fn a_line_tells_how_each_step_ended() {
+        let mut tracker = StepTracker {
+            plan: ExperimentProgress {
+                kind: ExperimentKind::Static,
+                steps: 3,
+                step_length: 2.0,
+            },
+            step: None,
+            began: 0.0,
+            rest_rows: 0,
+            start: None,
+        };
+        let q = [0.0; 3];
+        let mut extra = [0.0; 19];
+        let mut lines = Vec::new();
+        // (t, step, rest): step 0 comes to rest for two rows, step 1 never does.
+        for (t, step, rest) in [
+            (0.0, f64::NAN, 0.0),
+            (1.0, 0.0, 0.0),
+            (2.0, 0.0, 1.0),
+            (2.5, 0.0, 1.0),
+            (3.0, 1.0, 0.0),
+            (9.0, 2.0, 0.0),
+            (10.0, 2.0, 1.0),
+        ] {
+            extra[STEP] = step;
+            extra[REST] = rest;
+            let row = Row {
+                t,
+                q: &q,
+                qd: &q,
+                tau: &q,
+                tau_nom: &q,
+                b: &q,
+                extra: &extra,
+            };
+            lines.extend(tracker.add(&row));
+        }
+        lines.extend(tracker.ended(10.5, true));
+        assert_eq!(
+            lines,
+            [
+                "experiment: step 1 of 3: at rest, 2 rows logged (2.0 s); 2 to go, at least 4 s",
+                "experiment: step 2 of 3: no rest within 6.0 s; 1 to go, at least 2 s",
+                "experiment: step 3 of 3: at rest, 1 rows logged (1.5 s)",
+            ]
+        );
     }
 
     #[test]

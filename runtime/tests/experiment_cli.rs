@@ -1,0 +1,276 @@
+//! End-to-end tests of `softcbf run --experiment` against the emulator: a static run logs
+//! rest rows and says so in `summary.json`, a dynamic run keeps its tensions in their
+//! limits, and bad options are refused before the port is opened.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+use std::sync::Mutex;
+
+use common::{BIN, Emulator, finish_run, robot, start_run, temp_dir};
+
+/// One emulator run at a time: their timing is part of what they check.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// A CSV log: its header and its rows (NaN where empty or not a number).
+fn read_log(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.trim().parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    (header, rows)
+}
+
+fn column(header: &[String], name: &str) -> usize {
+    header
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column `{name}` in {header:?}"))
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+const TENSIONS: [&str; 6] = [
+    "f module 1 tendon 1 [N]",
+    "f module 1 tendon 2 [N]",
+    "f module 1 tendon 3 [N]",
+    "f module 2 tendon 1 [N]",
+    "f module 2 tendon 2 [N]",
+    "f module 2 tendon 3 [N]",
+];
+const COORDINATES: [&str; 6] = [
+    "dx1 [m]", "dy1 [m]", "dL1 [m]", "dx2 [m]", "dy2 [m]", "dL2 [m]",
+];
+
+#[test]
+fn a_static_run_logs_its_rest_states_and_reports_them() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let out = temp_dir("experiment-static");
+    // Three or four of the sixteen sets (each at least 2 s), cut by --duration.
+    let run = start_run(
+        &emulator.port,
+        &out,
+        &["--experiment", "static", "--duration", "7", "--quiet"],
+    );
+    let (code, stdout, stderr) = finish_run(run, "static experiment");
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("experiment: step 1 of 16: at rest"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("stopped: experiment ended by --duration with"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("next: softcbf identify --robot"),
+        "{stdout}"
+    );
+
+    let s = summary(&out);
+    let e = &s["experiment"];
+    assert_eq!(e["kind"], "static");
+    assert_eq!(e["steps"], 16);
+    assert_eq!(e["complete"], false);
+    assert_eq!(s["set_point"], serde_json::Value::Null);
+    let at_rest = e["steps_at_rest"].as_u64().unwrap();
+    assert!(at_rest >= 2, "{e}");
+    let threshold = e["rest_threshold"].as_f64().unwrap();
+    let base: Vec<f64> = serde_json::from_value(e["base_tension"].clone()).unwrap();
+    let amplitude: Vec<f64> = serde_json::from_value(e["amplitude"].clone()).unwrap();
+
+    let (header, rows) = read_log(&out.join("trajectory.csv"));
+    let (step, rest) = (column(&header, "step"), column(&header, "rest"));
+    let rest_rows: Vec<&Vec<f64>> = rows.iter().filter(|r| r[rest] == 1.0).collect();
+    assert_eq!(rest_rows.len() as u64, e["rest_rows"].as_u64().unwrap());
+    assert!(rows.iter().all(|r| r[step].is_finite()));
+    for k in 0..at_rest as usize {
+        let rows: Vec<&&Vec<f64>> = rest_rows.iter().filter(|r| r[step] == k as f64).collect();
+        // About a second of rest rows at 33 Hz.
+        assert!((30..=36).contains(&rows.len()), "step {k}: {}", rows.len());
+        // At rest: every coordinate within the threshold over the rest rows (the quiet
+        // window before them was, and nothing moves the robot while the set is held).
+        for name in COORDINATES {
+            let c = column(&header, name);
+            let values = rows.iter().map(|r| r[c]);
+            let span = values.clone().fold(f64::MIN, f64::max) - values.fold(f64::MAX, f64::min);
+            assert!(span < threshold, "step {k}, {name}: {span} m");
+        }
+        // The set held: step 0 the base on every tendon; step 1 the amplitude added to
+        // each module's first tendon (the robot's own physics, in the file's limits: the
+        // filter has no reason to change them at rest).
+        for (j, name) in TENSIONS.iter().enumerate().filter(|_| k <= 1) {
+            let c = column(&header, name);
+            let expected = base[j / 3]
+                + if k == 1 && j % 3 == 0 {
+                    amplitude[j / 3]
+                } else {
+                    0.0
+                };
+            for r in &rows {
+                assert!(
+                    (r[c] - expected).abs() < 1e-9,
+                    "step {k}, {name}: {} N",
+                    r[c]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_dynamic_run_keeps_its_tensions_in_their_limits_and_ends_by_itself() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let out = temp_dir("experiment-dynamic");
+    let run = start_run(
+        &emulator.port,
+        &out,
+        &["--experiment", "dynamic", "--duration", "4.5", "--quiet"],
+    );
+    let (code, stdout, stderr) = finish_run(run, "dynamic experiment");
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    assert!(stdout.contains("stopped: experiment complete"), "{stdout}");
+    assert!(
+        stdout.contains("experiment: operating point 3 of 3 done"),
+        "{stdout}"
+    );
+    let s = summary(&out);
+    let e = &s["experiment"];
+    assert_eq!(e["kind"], "dynamic");
+    assert_eq!(e["complete"], true);
+    assert_eq!(e["steps_run"], 3);
+    assert_eq!(e["duration"], 4.5);
+    let elapsed = s["elapsed"].as_f64().unwrap();
+    assert!((4.4..5.0).contains(&elapsed), "{elapsed} s");
+
+    // The hardware example's tension limits, [0.2, 40] N on every tendon.
+    let (header, rows) = read_log(&out.join("trajectory.csv"));
+    let (step, rest) = (column(&header, "step"), column(&header, "rest"));
+    let mut steps = Vec::new();
+    for r in &rows {
+        assert_eq!(r[rest], 0.0);
+        if steps.last() != Some(&r[step]) {
+            steps.push(r[step]);
+        }
+        for name in TENSIONS {
+            let f = r[column(&header, name)];
+            assert!((0.2 - 1e-9..=40.0).contains(&f), "{name}: {f} N");
+        }
+    }
+    assert_eq!(steps, [0.0, 1.0, 2.0]);
+    // The tensions move: a multisine, not a constant.
+    let c = column(&header, TENSIONS[4]);
+    let values = rows.iter().map(|r| r[c]);
+    let span = values.clone().fold(f64::MIN, f64::max) - values.fold(f64::MAX, f64::min);
+    assert!(span > 0.1, "{span} N");
+}
+
+/// `softcbf run` with `options` on the hardware example, with a port that is never
+/// opened: its exit code and standard error.
+fn refused(options: &[&str]) -> (i32, String) {
+    let output = Command::new(BIN)
+        .arg("run")
+        .arg("--robot")
+        .arg(robot())
+        .args(["--port", "/dev/null", "--out"])
+        .arg(temp_dir("experiment-refused").join("out"))
+        .args(options)
+        .output()
+        .unwrap();
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stderr).to_string(),
+    )
+}
+
+#[test]
+fn bad_experiment_options_are_refused_naming_the_option() {
+    for (options, code, message) in [
+        (
+            &["--experiment", "wobble"][..],
+            2,
+            "`wobble` is not an experiment",
+        ),
+        (
+            &["--amplitude", "1"],
+            1,
+            "--amplitude: an option of --experiment",
+        ),
+        (
+            &[
+                "--experiment",
+                "static",
+                "--set-point",
+                "0,0,-0.02,0,0,-0.01",
+            ],
+            1,
+            "--set-point: not with --experiment",
+        ),
+        (
+            &["--experiment", "static", "--no-filter"],
+            1,
+            "--no-filter: not with --experiment",
+        ),
+        (
+            &["--experiment", "static", "--amplitude", "100"],
+            1,
+            "--amplitude: module 1's tensions would span",
+        ),
+        (
+            &["--experiment", "static", "--amplitude", "0.5,0.5,0.5"],
+            1,
+            "--amplitude: give one value or one per module (2), got 3",
+        ),
+        (
+            &["--experiment", "static", "--amplitude", "nan"],
+            1,
+            "--amplitude: must be a finite number",
+        ),
+        (
+            &["--experiment", "static", "--step-time", "-1"],
+            1,
+            "--step-time: must be > 0",
+        ),
+        (
+            &["--experiment", "static", "--step-time", "0.5"],
+            1,
+            "--step-time: 0.5 s leaves no time",
+        ),
+        (
+            &["--experiment", "dynamic", "--rest-threshold", "1e-3"],
+            1,
+            "--rest-threshold: an option of --experiment static",
+        ),
+        (
+            &["--experiment", "dynamic", "--duration", "2"],
+            1,
+            "--duration: 2 s gives each of the 3 operating points",
+        ),
+        (
+            &["--experiment", "dynamic", "--base-tension", "0.1"],
+            1,
+            "--base-tension: module 1's tensions would span",
+        ),
+    ] {
+        let (got, stderr) = refused(options);
+        assert_eq!(got, code, "{options:?}: {stderr}");
+        assert!(stderr.contains(message), "{options:?}: {stderr}");
+    }
+}
