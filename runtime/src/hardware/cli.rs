@@ -193,6 +193,11 @@ pub struct RunArgs {
     /// robot file's hardware.max_consecutive_errors).
     #[arg(long, allow_negative_numbers = true)]
     pub max_errors: Option<i64>,
+    /// Longest wait for one status packet (ms) (default: the robot file's
+    /// hardware.reply_timeout_ms). It must exceed the USB adapter's latency timer: 40 with
+    /// a factory-set one (16 ms), or the emulator's `--preset factory`.
+    #[arg(long, allow_negative_numbers = true)]
+    pub reply_timeout_ms: Option<f64>,
 }
 
 /// The loop rate of `softcbf run` when `--rate` is not given \[Hz\] (the paper's 33 Hz).
@@ -380,6 +385,10 @@ pub fn run_settings(
             .check_integer(n)
             .map_err(|m| format!("--max-errors: {m}"))?
             as u32;
+    }
+    if let Some(ms) = args.reply_timeout_ms {
+        hardware.reply_timeout =
+            check_number("--reply-timeout-ms", ms, &servo::REPLY_TIMEOUT_MS)? / 1000.0;
     }
     let default_set_point = hardware.set_point.clone();
     let (rate, rate_rule) = match args.rate.as_deref() {
