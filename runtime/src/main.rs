@@ -116,6 +116,9 @@ enum Command {
     Run(softcbf::hardware::cli::RunArgs),
     /// Redraw the figures from trajectory CSVs or hardware logs (several: side by side).
     Plot(softcbf::replot::PlotArgs),
+    /// Identify stiffness, damping and actuator gains from run logs, and write the robot
+    /// file with those numbers (and a figure of a held-out part predicted).
+    Identify(softcbf::identify::IdentifyArgs),
 }
 
 fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
@@ -151,6 +154,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         Command::Emulate(args) => softcbf::hardware::cli::emulate(args, console),
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
         Command::Plot(args) => softcbf::replot::plot(args, console),
+        Command::Identify(args) => softcbf::identify::run(args, console),
         Command::Simulate(args) => run_simulation(args, console),
     }
 }

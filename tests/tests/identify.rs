@@ -1,0 +1,695 @@
+//! `softcbf identify` on logs of a simulated robot whose numbers differ from the file's by
+//! 24–40 %: every identified number within 2 % of the plant's with exact readings (per
+//! module and per servo gains), parameters the logs do not excite kept and reported, bad
+//! logs refused with nothing written, and the written file the input with only the
+//! identified numbers changed.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use rand::RngExt;
+use softcbf::hardware::description::Hardware;
+use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, Tick, write_log};
+use softcbf::identify::{
+    ExperimentKind, Identification, IdentifyArgs, Options, Parameter, Status, hardware_of,
+    identify, logs::Expected, output, read_logs,
+};
+use softcbf::model::Model;
+use softcbf::output::Console;
+use softcbf_description::robot::Robot;
+use softcbf_tests::robots;
+
+/// A fresh directory for one test's files.
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("softcbf-identify-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The true numbers of the plant, per module: κθ, κL, βθ, βL (each 24–40 % off the
+/// example file's 0.5, 300, 0.01, 5).
+const TRUE_MODULES: [[f64; 4]; 2] = [[0.65, 390.0, 0.014, 3.5], [0.38, 225.0, 0.0075, 6.5]];
+/// The plant's actuator gains per servo [N/mA] (file: 0.04 each): module 1 +25 %,
+/// module 2 −25 %, the same for a module's three servos.
+const TRUE_GAINS: [f64; 6] = [0.05, 0.05, 0.05, 0.03, 0.03, 0.03];
+/// Gains that differ servo by servo (20–32 % off the file's).
+const SERVO_GAINS: [f64; 6] = [0.052, 0.0485, 0.05, 0.029, 0.032, 0.0272];
+
+/// `robots/hardware-example.toml` with `TRUE_MODULES` written into its `[[module]]`
+/// tables: the plant (same name, same structure). Written into `dir`.
+fn true_robot(dir: &Path) -> Robot {
+    let text = std::fs::read_to_string(robots::path("hardware-example.toml")).unwrap();
+    // After each `[[module]]` header line, the module's own numbers (they override
+    // `[defaults]`).
+    let mut edited = String::new();
+    let mut modules = TRUE_MODULES.iter();
+    for line in text.lines() {
+        edited.push_str(line);
+        edited.push('\n');
+        if line.starts_with("[[module]]") {
+            let [kt, kl, bt, bl] = modules.next().unwrap();
+            edited.push_str(&format!(
+                "bending_stiffness = {kt}\naxial_stiffness = {kl}\nbending_damping = {bt}\naxial_damping = {bl}\n"
+            ));
+        }
+    }
+    assert!(modules.next().is_none());
+    let path = dir.join("true-robot.toml");
+    std::fs::write(&path, edited).unwrap();
+    let robot = Robot::load(&path).unwrap();
+    for (module, numbers) in robot.modules.iter().zip(TRUE_MODULES) {
+        assert_eq!(
+            [
+                module.bending_stiffness,
+                module.axial_stiffness,
+                module.bending_damping,
+                module.axial_damping
+            ],
+            numbers
+        );
+    }
+    robot
+}
+
+/// Static experiment: `steps` tension sets (uniform in [0.3, 3] N, seeded) held `hold`
+/// seconds each, the last second of each at rest.
+fn static_schedule(
+    steps: usize,
+    hold: f64,
+    seed: u64,
+) -> impl FnMut(&Tick<'_>, &mut [f64]) -> Phase {
+    let mut rng = softcbf_tests::rng(seed);
+    let sets: Vec<Vec<f64>> = (0..steps)
+        .map(|_| (0..6).map(|_| rng.random_range(0.3..3.0)).collect())
+        .collect();
+    move |tick, tensions| {
+        let step = ((tick.t / hold) as usize).min(steps - 1);
+        tensions.copy_from_slice(&sets[step]);
+        let into = tick.t - step as f64 * hold;
+        Phase {
+            step: step as f64,
+            rest: into > hold - 1.0 && into < hold,
+        }
+    }
+}
+
+/// Dynamic experiment: a multisine (0.2–4 Hz) on each servo's tension around 1.8 N.
+fn dynamic_schedule() -> impl FnMut(&Tick<'_>, &mut [f64]) -> Phase {
+    let signals: Vec<Multisine> = (0..6)
+        .map(|s| Multisine::new(8, 0.2, 4.0, 1.4, 1.7 * s as f64 + 0.3))
+        .collect();
+    move |tick, tensions| {
+        for (f, signal) in tensions.iter_mut().zip(&signals) {
+            *f = 1.8 + signal.at(tick.t);
+        }
+        Phase {
+            step: 0.0,
+            rest: false,
+        }
+    }
+}
+
+/// The example robot, its model and hardware.
+fn example() -> (&'static Model, Hardware) {
+    let model = robots::hardware_example_model();
+    (model, hardware_of(&model.robot).unwrap())
+}
+
+fn expected<'a>(robot: &'a Robot, hardware: &'a Hardware) -> Expected<'a> {
+    Expected {
+        name: &robot.name,
+        file: &robot.source,
+        nq: 3 * robot.modules.len(),
+        hardware,
+    }
+}
+
+/// A static (36 s) and a dynamic (60 s) log at 100 Hz of the true robot with `gains`,
+/// exact readings, in `dir/static` and `dir/dynamic`.
+fn write_experiments(dir: &Path, gains: &[f64]) -> Vec<PathBuf> {
+    let (file, _) = example();
+    let plant = Model::new(true_robot(dir)).unwrap();
+    let mut run = SyntheticRun::new(file, &plant, 100.0, 36.0);
+    run.gains = Some(gains);
+    run.kind = Some(ExperimentKind::Static);
+    write_log(&dir.join("static"), &run, static_schedule(12, 3.0, 7)).unwrap();
+    run.duration = 60.0;
+    run.kind = Some(ExperimentKind::Dynamic);
+    write_log(&dir.join("dynamic"), &run, dynamic_schedule()).unwrap();
+    vec![dir.join("static"), dir.join("dynamic")]
+}
+
+/// The logs of [`write_experiments`] with [`TRUE_GAINS`], written once per test binary.
+fn exact_logs() -> &'static [PathBuf] {
+    static LOGS: OnceLock<Vec<PathBuf>> = OnceLock::new();
+    LOGS.get_or_init(|| write_experiments(&out_dir("exact-logs"), &TRUE_GAINS))
+}
+
+/// Every parameter identified within `tolerance` of the plant's (`gains` per servo).
+fn check_within(id: &Identification, tolerance: f64, gains: &[f64]) {
+    for (i, numbers) in TRUE_MODULES.iter().enumerate() {
+        let parameters = [
+            Parameter::BendingStiffness,
+            Parameter::AxialStiffness,
+            Parameter::BendingDamping,
+            Parameter::AxialDamping,
+        ];
+        let pairs = parameters
+            .iter()
+            .zip(numbers)
+            .map(|(p, v)| (*p, *v))
+            .chain((0..3).map(|k| (Parameter::ActuatorGain(k), gains[3 * i + k])));
+        for (parameter, truth) in pairs {
+            let got = id.value(i, parameter);
+            assert!(
+                id.identified(i, parameter),
+                "{} of module {} not identified: {:?}",
+                parameter.symbol(),
+                i + 1,
+                id.fit.status[parameter.index(i)]
+            );
+            assert!(
+                (got / truth - 1.0).abs() < tolerance,
+                "{} of module {}: {got} against the true {truth}",
+                parameter.symbol(),
+                i + 1
+            );
+        }
+    }
+}
+
+/// The lines of a robot file with what identification may add or change taken out: the
+/// comment lines it adds, the keys `added` inside `[[module]]` tables, and the value of
+/// each `actuator_gain` (its comment kept).
+fn without_identified(text: &str, added: &[&str]) -> Vec<String> {
+    let mut in_module = false;
+    let mut kept = Vec::new();
+    for line in text.lines() {
+        if line.starts_with('[') {
+            in_module = line.starts_with("[[module]]");
+        }
+        if line
+            .trim_start()
+            .starts_with("# identified by softcbf identify")
+            || (in_module
+                && added
+                    .iter()
+                    .any(|key| line.starts_with(&format!("{key} = "))))
+        {
+            continue;
+        }
+        kept.push(match line.strip_prefix("actuator_gain = ") {
+            // The value runs to the comment (a number or an array).
+            Some(rest) => format!(
+                "actuator_gain = <value> {}",
+                rest.find('#').map_or("", |k| &rest[k..])
+            ),
+            None => line.to_string(),
+        });
+    }
+    kept
+}
+
+#[test]
+fn exact_readings_identify_every_number_within_two_percent_and_the_file_says_so() {
+    let (file, hardware) = example();
+    let robot = &file.robot;
+    let logs = read_logs(exact_logs(), &expected(robot, &hardware)).unwrap();
+    let id = identify(robot, &logs, &Options::default()).unwrap();
+    check_within(&id, 0.02, &TRUE_GAINS);
+    // One gain per module: the three servos' agree.
+    assert_eq!(id.fit.tied, [true, true]);
+    // The fit explains the data; the identified numbers predict the held-out part far
+    // better than the file's.
+    for stats in &id.fit.stats {
+        assert!(stats.rows > 0 && stats.r_squared > 0.999, "{stats:?}");
+    }
+    let prediction = &id.predictions[0];
+    assert!(
+        prediction.rms[0] < 0.1 * prediction.rms[1],
+        "{:?}",
+        prediction.rms
+    );
+    // Standard errors are reported for every identified number, and they are small.
+    for j in 0..id.file.len() {
+        assert!(
+            id.fit.se[j] > 0.0 && id.fit.se[j] < 0.01 * id.fit.theta[j],
+            "{j}"
+        );
+    }
+
+    // The command: the robot file written, with only these numbers changed.
+    let dir = out_dir("exact-cli");
+    let source = robots::path("hardware-example.toml");
+    let out = dir.join("identified.toml");
+    let args = IdentifyArgs {
+        robot: source.clone(),
+        logs: exact_logs().to_vec(),
+        out: out.clone(),
+        figures: None,
+        half_width: None,
+    };
+    assert_eq!(softcbf::identify::run(args, &mut Console::new()), Ok(0));
+    for figure in ["identify.png", "identify.svg"] {
+        assert!(
+            std::fs::metadata(dir.join(figure)).unwrap().len() > 1000,
+            "{figure}"
+        );
+    }
+    let written = std::fs::read_to_string(&out).unwrap();
+    let original = std::fs::read_to_string(&source).unwrap();
+    let keys = [
+        "bending_stiffness",
+        "axial_stiffness",
+        "bending_damping",
+        "axial_damping",
+    ];
+    assert_eq!(
+        without_identified(&written, &keys),
+        without_identified(&original, &[]),
+        "the written file differs in more than the identified numbers"
+    );
+    // A comment line for each number: four per module and a gain per module.
+    assert_eq!(
+        written
+            .matches("# identified by softcbf identify from 2 logs")
+            .count(),
+        10
+    );
+    let back = Robot::load(&out).unwrap();
+    let back_hardware = hardware_of(&back).unwrap();
+    for (i, module) in back.modules.iter().enumerate() {
+        let numbers = [
+            module.bending_stiffness,
+            module.axial_stiffness,
+            module.bending_damping,
+            module.axial_damping,
+        ];
+        for (got, truth) in numbers.iter().zip(TRUE_MODULES[i]) {
+            assert!(
+                (got / truth - 1.0).abs() < 0.02,
+                "module {}: {got} {truth}",
+                i + 1
+            );
+        }
+        for (got, truth) in back_hardware.modules[i]
+            .actuator_gain
+            .iter()
+            .zip(&TRUE_GAINS[3 * i..])
+        {
+            assert!(
+                (got / truth - 1.0).abs() < 0.02,
+                "module {}: {got} {truth}",
+                i + 1
+            );
+        }
+        // Everything else as in the file.
+        let mut restored = module.clone();
+        let original = &robot.modules[i];
+        restored.bending_stiffness = original.bending_stiffness;
+        restored.axial_stiffness = original.axial_stiffness;
+        restored.bending_damping = original.bending_damping;
+        restored.axial_damping = original.axial_damping;
+        assert_eq!(&restored, original);
+    }
+}
+
+#[test]
+fn gains_that_differ_per_servo_are_identified_per_servo() {
+    let dir = out_dir("servo-gains");
+    let dirs = write_experiments(&dir, &SERVO_GAINS);
+    let (file, hardware) = example();
+    let robot = &file.robot;
+    let logs = read_logs(&dirs, &expected(robot, &hardware)).unwrap();
+    let id = identify(robot, &logs, &Options::default()).unwrap();
+    check_within(&id, 0.02, &SERVO_GAINS);
+    assert_eq!(id.fit.tied, [false, false]);
+    // The file gets one array per module, in tendon order.
+    let text = std::fs::read_to_string(robots::path("hardware-example.toml")).unwrap();
+    let rendered = output::render(&text, robot, &id).unwrap();
+    let arrays: Vec<Vec<f64>> = rendered
+        .lines()
+        .filter_map(|line| line.strip_prefix("actuator_gain = ["))
+        .map(|rest| {
+            rest[..rest.find(']').unwrap()]
+                .split(',')
+                .map(|v| v.trim().parse().unwrap())
+                .collect()
+        })
+        .collect();
+    assert_eq!(arrays.len(), 2, "{rendered}");
+    for (values, truth) in arrays.iter().zip(SERVO_GAINS.chunks(3)) {
+        for (got, want) in values.iter().zip(truth) {
+            assert!((got / want - 1.0).abs() < 0.02, "{values:?} {truth:?}");
+        }
+    }
+}
+
+#[test]
+fn a_parameter_the_logs_do_not_excite_is_kept_and_reported() {
+    // Equal tensions on a module's three tendons (and equal gains) never bend it: the
+    // bending stiffness and damping of both modules are not excited.
+    let dir = out_dir("axial-only");
+    let (file, hardware) = example();
+    let plant = Model::new(true_robot(&dir)).unwrap();
+    let mut run = SyntheticRun::new(file, &plant, 100.0, 30.0);
+    run.gains = Some(&TRUE_GAINS);
+    let (a, b) = (
+        Multisine::new(6, 0.2, 3.0, 1.2, 0.4),
+        Multisine::new(6, 0.2, 3.0, 1.2, 2.1),
+    );
+    run.kind = Some(ExperimentKind::Dynamic);
+    write_log(&dir.join("axial"), &run, |tick, tensions| {
+        let (f1, f2) = (1.6 + a.at(tick.t), 1.4 + b.at(tick.t));
+        tensions.copy_from_slice(&[f1, f1, f1, f2, f2, f2]);
+        Phase {
+            step: 0.0,
+            rest: false,
+        }
+    })
+    .unwrap();
+    let robot = &file.robot;
+    let logs = read_logs(&[dir.join("axial")], &expected(robot, &hardware)).unwrap();
+    let id = identify(robot, &logs, &Options::default()).unwrap();
+    for i in 0..2 {
+        for parameter in [Parameter::BendingStiffness, Parameter::BendingDamping] {
+            let j = parameter.index(i);
+            match &id.fit.status[j] {
+                Status::Kept(reason) => assert!(reason.contains("not excited"), "{reason}"),
+                Status::Identified => panic!("{} identified", Parameter::describe(j)),
+            }
+            assert_eq!(id.fit.theta[j], id.file[j]);
+        }
+        for (parameter, truth) in [
+            (Parameter::AxialStiffness, TRUE_MODULES[i][1]),
+            (Parameter::AxialDamping, TRUE_MODULES[i][3]),
+            (Parameter::ActuatorGain(0), TRUE_GAINS[3 * i]),
+        ] {
+            let got = id.value(i, parameter);
+            assert!(
+                (got / truth - 1.0).abs() < 0.02,
+                "{parameter:?} {got} {truth}"
+            );
+        }
+    }
+    let report = id.report().join("\n");
+    assert!(
+        report.contains("κθ of module 2: not excited by these logs"),
+        "{report}"
+    );
+    assert!(report.contains("kept the file's 0.01"), "{report}");
+    // The written file leaves them alone.
+    let text = std::fs::read_to_string(robots::path("hardware-example.toml")).unwrap();
+    let rendered = output::render(&text, robot, &id).unwrap();
+    assert_eq!(
+        rendered.matches("bending_stiffness = ").count(),
+        1,
+        "{rendered}"
+    );
+    assert_eq!(
+        rendered.matches("bending_damping = ").count(),
+        1,
+        "{rendered}"
+    );
+    assert_eq!(
+        rendered.matches("axial_stiffness = ").count(),
+        3,
+        "{rendered}"
+    );
+}
+
+/// A short static log of the example robot itself (10 s, 100 Hz), written once: the base
+/// that the bad-log cases edit.
+fn base_log() -> &'static Path {
+    static LOG: OnceLock<PathBuf> = OnceLock::new();
+    LOG.get_or_init(|| {
+        let dir = out_dir("base").join("run");
+        let (file, _) = example();
+        let mut run = SyntheticRun::new(file, file, 100.0, 10.0);
+        run.kind = Some(ExperimentKind::Static);
+        write_log(&dir, &run, static_schedule(5, 2.0, 3)).unwrap();
+        dir
+    })
+}
+
+/// A copy of the base log in `dir/run` with `edit` applied to its CSV lines and
+/// `summary` to its summary text.
+fn edited_log(
+    dir: &Path,
+    edit: impl Fn(usize, &str) -> String,
+    summary: impl Fn(&str) -> String,
+) -> PathBuf {
+    let run = dir.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    let text = std::fs::read_to_string(base_log().join("trajectory.csv")).unwrap();
+    let lines: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(k, line)| edit(k + 1, line))
+        .collect();
+    std::fs::write(run.join("trajectory.csv"), lines.join("\n") + "\n").unwrap();
+    let json = std::fs::read_to_string(base_log().join("summary.json")).unwrap();
+    std::fs::write(run.join("summary.json"), summary(&json)).unwrap();
+    run
+}
+
+/// Runs `softcbf identify` on `logs`; returns its error, after checking that nothing
+/// was written.
+fn refused(dir: &Path, logs: Vec<PathBuf>) -> String {
+    let out = dir.join("identified.toml");
+    let args = IdentifyArgs {
+        robot: robots::path("hardware-example.toml"),
+        logs,
+        out: out.clone(),
+        figures: None,
+        half_width: None,
+    };
+    let error = softcbf::identify::run(args, &mut Console::new()).unwrap_err();
+    assert!(!out.exists(), "{error}: {} was written", out.display());
+    let left: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|name| name != "run")
+        .collect();
+    assert!(left.is_empty(), "{error}: left {left:?}");
+    error
+}
+
+/// The 1-based column of `name` in the base log's header.
+fn column_of(name: &str) -> usize {
+    let text = std::fs::read_to_string(base_log().join("trajectory.csv")).unwrap();
+    let header = text.lines().next().unwrap();
+    header.split(',').position(|c| c == name).unwrap()
+}
+
+fn replace_field(line: &str, column: usize, value: &str) -> String {
+    let mut fields: Vec<&str> = line.split(',').collect();
+    fields[column] = value;
+    fields.join(",")
+}
+
+#[test]
+fn bad_logs_are_refused_naming_file_line_and_column_and_nothing_is_written() {
+    let same = |_: usize, line: &str| line.to_string();
+    let keep = |json: &str| json.to_string();
+
+    // The base log itself is fine.
+    let dir = out_dir("bad-none");
+    let out = dir.join("identified.toml");
+    let good = edited_log(&dir, same, keep);
+    let args = IdentifyArgs {
+        robot: robots::path("hardware-example.toml"),
+        logs: vec![good],
+        out: out.clone(),
+        figures: None,
+        half_width: None,
+    };
+    assert_eq!(softcbf::identify::run(args, &mut Console::new()), Ok(0));
+    assert!(out.exists());
+
+    let dir = out_dir("bad-no-logs");
+    let error = refused(&dir, vec![]);
+    assert!(error.contains("no logs given"), "{error}");
+
+    let dir = out_dir("bad-no-trajectory");
+    std::fs::create_dir_all(dir.join("run")).unwrap();
+    let error = refused(&dir, vec![dir.join("run")]);
+    assert!(error.contains("run: no trajectory.csv"), "{error}");
+
+    // A column missing (a log from before the identification columns).
+    let dir = out_dir("bad-column");
+    let sampled = column_of("sampled [us]");
+    let log = edited_log(
+        &dir,
+        |_, line| {
+            let mut fields: Vec<&str> = line.split(',').collect();
+            fields.remove(sampled);
+            fields.join(",")
+        },
+        keep,
+    );
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains("trajectory.csv:1: no column `sampled [us]`"),
+        "{error}"
+    );
+
+    // A reading that is not a number.
+    let dir = out_dir("bad-nan");
+    let dl1 = column_of("dL1 [m]");
+    let log = edited_log(
+        &dir,
+        |k, line| {
+            if k == 300 {
+                replace_field(line, dl1, "NaN")
+            } else {
+                line.to_string()
+            }
+        },
+        keep,
+    );
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains("trajectory.csv:300: column `dL1 [m]`: NaN in a row with a reading"),
+        "{error}"
+    );
+
+    // Too short: the first 0.15 s.
+    let dir = out_dir("bad-short");
+    let log = edited_log(&dir, same, keep);
+    let text = std::fs::read_to_string(log.join("trajectory.csv")).unwrap();
+    let head: Vec<&str> = text.lines().take(16).collect();
+    std::fs::write(log.join("trajectory.csv"), head.join("\n") + "\n").unwrap();
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains("too short: 0.140 s of readings (15 rows)"),
+        "{error}"
+    );
+    assert!(
+        error.contains("needs one rest state, or one filter window of 0.160 s"),
+        "{error}"
+    );
+
+    // Saturated: most commands clamped at the upper tension limit.
+    let dir = out_dir("bad-saturated");
+    let high = column_of("clamp_high");
+    let log = edited_log(
+        &dir,
+        |k, line| {
+            if k > 1 && k % 4 != 0 {
+                replace_field(line, high, "3")
+            } else {
+                line.to_string()
+            }
+        },
+        keep,
+    );
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains("saturated: 751 of 1001 commands were clamped"),
+        "{error}"
+    );
+
+    // Another robot: by name, by coordinates.
+    let dir = out_dir("bad-robot-name");
+    let log = edited_log(&dir, same, |json| {
+        json.replace("\"hardware-example\"", "\"paper-hardware\"")
+    });
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains(
+            "summary.json: from a different robot: the run was of robot `paper-hardware`"
+        ),
+        "{error}"
+    );
+    let dir = out_dir("bad-robot-coordinates");
+    let log = edited_log(
+        &dir,
+        |k, line| {
+            if k == 1 {
+                line.replace("dL2 [m]", "dz2 [m]")
+            } else {
+                line.to_string()
+            }
+        },
+        keep,
+    );
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains("from a different robot: the log has 5 coordinates"),
+        "{error}"
+    );
+}
+
+/// The accuracy against the loop rate and the filter's half-width, on exact readings (a
+/// measurement; run with `--ignored --nocapture`): with the default half-width every number
+/// within 1 % from 50 Hz on and within 0.5 % from 100 Hz on. At 33 Hz the damping of the
+/// light module 2 is off by several percent (printed, not promised): its damped modes
+/// (time constants near 15 ms) are faster than readings 30 ms apart resolve.
+#[test]
+#[ignore]
+fn accuracy_against_rate_and_half_width() {
+    let dir = out_dir("rates");
+    let (file, hardware) = example();
+    let plant = Model::new(true_robot(&dir)).unwrap();
+    let robot = &file.robot;
+    let mut failures = Vec::new();
+    for rate in [100.0 / 3.0, 50.0, 100.0, 200.0] {
+        let mut run = SyntheticRun::new(file, &plant, rate, 36.0);
+        run.gains = Some(&TRUE_GAINS);
+        run.kind = Some(ExperimentKind::Static);
+        write_log(&dir.join("static"), &run, static_schedule(12, 3.0, 7)).unwrap();
+        run.duration = 60.0;
+        run.kind = Some(ExperimentKind::Dynamic);
+        write_log(&dir.join("dynamic"), &run, dynamic_schedule()).unwrap();
+        let logs = read_logs(
+            &[dir.join("static"), dir.join("dynamic")],
+            &expected(robot, &hardware),
+        )
+        .unwrap();
+        for half_width in [None, Some(0.06), Some(0.12), Some(0.2)] {
+            let options = Options {
+                half_width,
+                predict: false,
+                ..Options::default()
+            };
+            let Ok(id) = identify(robot, &logs, &options) else {
+                println!("{rate:5.1} Hz, T = {half_width:?}: refused");
+                continue;
+            };
+            let mut errors: Vec<(f64, String)> = (0..14)
+                .map(|j| {
+                    let (i, k) = (j / 7, j % 7);
+                    let truth = if k < 4 {
+                        TRUE_MODULES[i][k]
+                    } else {
+                        TRUE_GAINS[3 * i + k - 4]
+                    };
+                    (
+                        (id.fit.theta[j] / truth - 1.0).abs(),
+                        Parameter::describe(j),
+                    )
+                })
+                .collect();
+            errors.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let worst: Vec<String> = errors
+                .iter()
+                .take(3)
+                .map(|(e, name)| format!("{name} {:.2} %", 100.0 * e))
+                .collect();
+            println!(
+                "{rate:5.1} Hz, T = {:.3} s: {}; dynamic residual {:.2e} N",
+                id.half_width,
+                worst.join(", "),
+                id.fit.stats[1].rms
+            );
+            let bound = if rate >= 99.0 { 0.005 } else { 0.01 };
+            if half_width.is_none() && rate > 40.0 && errors[0].0 >= bound {
+                failures.push(format!("{rate} Hz: {:?}", errors[0]));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:?}");
+}
