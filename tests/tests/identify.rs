@@ -9,6 +9,7 @@ use std::sync::OnceLock;
 
 use rand::RngExt;
 use softcbf::hardware::description::Hardware;
+use softcbf::hardware::emulator::SensorNoise;
 use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, Tick, write_log};
 use softcbf::identify::{
     ExperimentKind, Identification, IdentifyArgs, Options, Parameter, Status, hardware_of,
@@ -417,6 +418,46 @@ fn a_parameter_the_logs_do_not_excite_is_kept_and_reported() {
         3,
         "{rendered}"
     );
+}
+
+#[test]
+fn quantized_noisy_readings_stay_within_two_percent() {
+    // Readings as the servos give them: one register unit of Gaussian noise on position
+    // and velocity, rounded to register units (the emulator's factory preset's noise).
+    let dir = out_dir("noisy");
+    let (file, hardware) = example();
+    let plant = Model::new(true_robot(&dir)).unwrap();
+    let mut run = SyntheticRun::new(file, &plant, 100.0, 36.0);
+    run.gains = Some(&TRUE_GAINS);
+    run.tolerances = Default::default();
+    run.servo_readings = Some(SensorNoise {
+        position: 1.0,
+        velocity: 1.0,
+        seed: 11,
+    });
+    run.kind = Some(ExperimentKind::Static);
+    write_log(&dir.join("static"), &run, static_schedule(12, 3.0, 5)).unwrap();
+    run.duration = 90.0;
+    run.kind = Some(ExperimentKind::Dynamic);
+    write_log(&dir.join("dynamic"), &run, dynamic_schedule()).unwrap();
+    let robot = &file.robot;
+    let logs = read_logs(
+        &[dir.join("static"), dir.join("dynamic")],
+        &expected(robot, &hardware),
+    )
+    .unwrap();
+    let id = identify(robot, &logs, &Options::default()).unwrap();
+    check_within(&id, 0.02, &TRUE_GAINS);
+    // The jackknife errors are larger than the textbook ones (rows of overlapping windows
+    // are correlated) yet of the same order.
+    for j in 0..id.file.len() {
+        let ratio = id.fit.se[j] / id.fit.textbook_se[j];
+        assert!(
+            (0.3..30.0).contains(&ratio),
+            "{}: {ratio}",
+            Parameter::describe(j)
+        );
+    }
 }
 
 /// A short static log of the example robot itself (10 s, 100 Hz), written once: the base

@@ -289,6 +289,12 @@ pub fn write_robot(
         || "identified.toml".into(),
         |n| n.to_string_lossy().into_owned(),
     );
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| IdentifyError::Io {
+            file: parent.to_path_buf(),
+            message: format!("cannot create the directory of --out: {e}"),
+        })?;
+    }
     let temporary = out.with_file_name(format!(".{name}.partial"));
     let io = |e: std::io::Error| IdentifyError::Io {
         file: temporary.clone(),
@@ -367,7 +373,7 @@ pub fn report(id: &Identification) -> Vec<String> {
                 (
                     format!(
                         "{} ± {}{}",
-                        short(fit.theta[j]),
+                        written(id, j),
                         short(fit.se[j]),
                         if tie { " (tied)" } else { "" }
                     ),
@@ -425,4 +431,106 @@ pub fn report(id: &Identification) -> Vec<String> {
     }
     lines.extend(id.notes.iter().cloned());
     lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::{Fit, KindStats, LogFacts, file_values};
+
+    /// An identification of `robot` that scales every number by 1.2, but keeps module 2's
+    /// bending damping, with gains tied.
+    fn scaled(robot: &Robot) -> Identification {
+        let hardware = hardware_of(robot).unwrap();
+        let file = file_values(robot, &hardware);
+        let kept = Parameter::BendingDamping.index(1);
+        let status: Vec<Status> = (0..file.len())
+            .map(|j| {
+                if j == kept {
+                    Status::Kept("not excited".into())
+                } else {
+                    Status::Identified
+                }
+            })
+            .collect();
+        let theta = file
+            .iter()
+            .enumerate()
+            .map(|(j, v)| if j == kept { *v } else { 1.2 * v })
+            .collect();
+        let stats = KindStats {
+            rows: 0,
+            rms: f64::NAN,
+            r_squared: f64::NAN,
+        };
+        Identification {
+            fit: Fit {
+                theta,
+                se: vec![1e-5; file.len()],
+                textbook_se: vec![1e-5; file.len()],
+                status,
+                tied: vec![true; 2],
+                notes: Vec::new(),
+                stats: [stats; 2],
+                condition: 1.0,
+                blocks: 20,
+            },
+            file,
+            logs: vec![LogFacts {
+                name: "run".into(),
+                readings: 100,
+                dynamic: true,
+            }],
+            instants: 10,
+            rest_states: 2,
+            rows: [12, 60],
+            half_width: 0.08,
+            holdout: 0.2,
+            predictions: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_file_with_modules_n_gets_module_tables_and_reads_back() {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/hardware-example.toml"
+        ));
+        let text = std::fs::read_to_string(path).unwrap();
+        // The two [[module]] tables (masses only) replaced by `modules = 2`, a top-level
+        // key (before the first table).
+        let start = text.find("[[module]]").unwrap();
+        let end = text.find("[hardware]").unwrap();
+        let text = format!("{}{}", &text[..start], &text[end..]).replacen(
+            "name = \"hardware-example\"\n",
+            "name = \"hardware-example\"\nmodules = 2\n",
+            1,
+        );
+        let robot = Robot::parse(&text, path).unwrap();
+        let id = scaled(&robot);
+        let dir =
+            std::env::temp_dir().join(format!("softcbf-identify-output-{}", std::process::id()));
+        let out = dir.join("identified.toml");
+        write_robot(&text, &robot, &id, &out).unwrap();
+        let back = Robot::load(&out).unwrap();
+        let hardware = hardware_of(&back).unwrap();
+        for (i, module) in back.modules.iter().enumerate() {
+            let original = &robot.modules[i];
+            assert_eq!(module.bending_stiffness, 1.2 * original.bending_stiffness);
+            assert_eq!(module.axial_damping, 1.2 * original.axial_damping);
+            let damping = if i == 1 { 1.0 } else { 1.2 };
+            assert_eq!(module.bending_damping, damping * original.bending_damping);
+            assert_eq!(module.mass, original.mass);
+            assert_eq!(hardware.modules[i].actuator_gain, [1.2 * 0.04; 3]);
+        }
+        let written = std::fs::read_to_string(&out).unwrap();
+        assert!(
+            !written.lines().any(|l| l.starts_with("modules")),
+            "{written}"
+        );
+        assert_eq!(written.matches("[[module]]").count(), 2, "{written}");
+        assert!(!dir.join(".identified.toml.partial").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

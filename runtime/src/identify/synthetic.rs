@@ -294,9 +294,10 @@ pub fn write_log(
     Ok(summary)
 }
 
-/// A multisine: `Σ_k a_k sin(2π f_k t + φ_k)` with `components` frequencies spread
+/// A multisine: `a Σ_k sin(2π f_k t + φ_k)` with `components` frequencies spread
 /// logarithmically over `[low, high]` \[Hz\] and Schroeder phases (a low crest factor),
-/// scaled to peak amplitude at most `amplitude`.
+/// with the RMS of a single sine of amplitude `amplitude` (`a = amplitude/√components`;
+/// its peaks stay near 1.5 times `amplitude`).
 #[derive(Clone, Debug)]
 pub struct Multisine {
     frequencies: Vec<f64>,
@@ -326,7 +327,7 @@ impl Multisine {
         Multisine {
             frequencies,
             phases,
-            scale: amplitude / (n as f64).sqrt() / std::f64::consts::SQRT_2 * 1.4,
+            scale: amplitude / (n as f64).sqrt(),
         }
     }
 
