@@ -382,6 +382,19 @@ pub fn hardware_of(robot: &Robot) -> Result<Hardware, IdentifyError> {
     })
 }
 
+/// Reads the run directories `dirs` as logs of `robot` (its name, coordinates and servos
+/// must match): [`read_logs`] with what `robot` says a log must have.
+pub fn read_logs_for(robot: &Robot, dirs: &[PathBuf]) -> Result<Vec<Log>, IdentifyError> {
+    let hardware = hardware_of(robot)?;
+    let expected = logs::Expected {
+        name: &robot.name,
+        file: &robot.source,
+        nq: 3 * robot.modules.len(),
+        hardware: &hardware,
+    };
+    read_logs(dirs, &expected)
+}
+
 /// The median interval between readings over all logs \[s\].
 fn median_period(logs: &[Log]) -> Option<f64> {
     let mut intervals: Vec<f64> = logs
@@ -550,14 +563,7 @@ pub fn run(args: IdentifyArgs, console: &mut Console) -> Result<u8, String> {
     let text = std::fs::read_to_string(&args.robot)
         .map_err(|e| format!("{}: {e}", args.robot.display()))?;
     let robot = Robot::parse(&text, &args.robot).map_err(|e| e.to_string())?;
-    let hardware = hardware_of(&robot).map_err(|e| e.to_string())?;
-    let expected = logs::Expected {
-        name: &robot.name,
-        file: &args.robot,
-        nq: 3 * robot.modules.len(),
-        hardware: &hardware,
-    };
-    let logs = read_logs(&args.logs, &expected).map_err(|e| e.to_string())?;
+    let logs = read_logs_for(&robot, &args.logs).map_err(|e| e.to_string())?;
     let options = Options {
         half_width: args.half_width,
         ..Options::default()

@@ -488,6 +488,12 @@ fn reduce_unit(
                 update_joints(model, &mut ws, &q_bar, &v_bar)
                     .and_then(|()| bias_and_gravity(model, &mut ws, &v_bar))
                     .map_err(|e| state_error(start, format!("the model fails here: {e}")))?;
+                if !ws.gravity.iter().all(|v| v.is_finite()) {
+                    return Err(state_error(
+                        start,
+                        "the model gives a non-finite force".into(),
+                    ));
+                }
                 for r in 0..nq {
                     geometry.row(r, q_bar[r], 0.0, &fu, -ws.gravity[r], &mut row);
                     accumulators[r / 3].push(&row, r % 3);
