@@ -23,6 +23,7 @@
 //! | [`inspect`] | `softcbf model`: every generated and dynamic quantity at one state, as JSON |
 //! | [`protocol`] | Dynamixel Protocol 2.0 codec and bus client |
 //! | [`hardware`] | the servos driven by the same tick (`softcbf run`), and their emulator |
+//! | [`identify`] | `softcbf identify`: stiffness, damping and actuator gains from run logs |
 //! | [`cli`] | what the subcommands share: loading robots, reading vectors and numbers |
 //! | [`exit`] | the command's exit statuses (safe, unsafe, fault, never started) |
 //!

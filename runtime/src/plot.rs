@@ -173,7 +173,7 @@ pub struct FigureOptions<'a> {
 }
 
 /// Registers the embedded fonts with plotters, once per process.
-fn register_fonts() -> Result<(), PlotError> {
+pub(crate) fn register_fonts() -> Result<(), PlotError> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         let regular = register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok();
@@ -750,7 +750,7 @@ pub fn modules_from_labels(labels: &[String]) -> Option<Vec<usize>> {
 }
 
 /// Writes 8-bit RGB `pixels` (row-major, `size` = width × height) as a PNG file.
-fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String> {
+pub(crate) fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String> {
     let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
     encoder.set_color(png::ColorType::Rgb);

@@ -12,6 +12,8 @@
 //! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`run_settings`] what it
 //!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures;
 //!   [`status_line`] the live line on the terminal.
+//! - [`experiment`]: the identification experiments of `softcbf run --experiment` (static
+//!   tension sets held to rest, multisines), whose tensions pass through the filter.
 //! - [`signal`]: terminating signals as flags the loops poll; [`cli`]: the two subcommands' options.
 
 pub mod bus_check;

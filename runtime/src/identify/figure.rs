@@ -7,7 +7,6 @@ use std::path::{Path, PathBuf};
 use plotters::coord::types::RangedCoordf64;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
-use plotters::style::register_font;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use softcbf_description::robot::Robot;
 
@@ -34,15 +33,6 @@ fn plant_style(k: usize) -> (RGBColor, Option<(u32, u32)>) {
     (RGBColor(r, g, b), if k == 0 { None } else { Some((8, 5)) })
 }
 
-/// Registers the embedded fonts with plotters (as the run figures do; registering again
-/// replaces a font by itself).
-fn register_fonts() -> Result<(), String> {
-    register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
-        .map_err(|_| "the embedded DejaVu font could not be registered".to_string())?;
-    register_font(FONT, FontStyle::Bold, dejavu::sans::bold())
-        .map_err(|_| "the embedded DejaVu font could not be registered".to_string())
-}
-
 /// Draws `<stem>.png` and `<stem>.svg` of `prediction` into `dir` (created if missing).
 pub fn draw(
     dir: &Path,
@@ -50,7 +40,7 @@ pub fn draw(
     prediction: &Prediction,
     robot: &Robot,
 ) -> Result<Vec<PathBuf>, String> {
-    register_fonts()?;
+    crate::plot::register_fonts().map_err(|e| e.to_string())?;
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let modules = prediction.nq.div_ceil(3).max(1);
     let size = (WIDTH, HEADER + ROW * modules as u32);
@@ -63,7 +53,7 @@ pub fn draw(
         root.present()
             .map_err(|e| format!("{}: {e}", png.display()))?;
     }
-    write_png(&png, &pixels, size).map_err(|e| format!("{}: {e}", png.display()))?;
+    crate::plot::write_png(&png, &pixels, size).map_err(|e| format!("{}: {e}", png.display()))?;
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
         draw_on(&root, prediction, robot).map_err(|e| format!("{}: {e}", svg.display()))?;
@@ -71,16 +61,6 @@ pub fn draw(
             .map_err(|e| format!("{}: {e}", svg.display()))?;
     }
     Ok(vec![png, svg])
-}
-
-fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String> {
-    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    writer.write_image_data(pixels).map_err(|e| e.to_string())?;
-    writer.finish().map_err(|e| e.to_string())
 }
 
 /// A line of `points` in `style`, `width` pixels wide, on `chart`.
