@@ -480,7 +480,8 @@ pub fn identify(
         identification.notes.push(format!(
             "note: readings every {:.1} ms: below 60 Hz the damping of light modules with fast \
              modes may be off by several percent (module 2 of the example robot: 2–8 % at 33 Hz \
-             on exact synthetic logs); run the dynamic experiment at 100 Hz where the bus allows",
+             on exact synthetic logs, 15 % through the emulator); widen [uncertainty] on damping \
+             accordingly (docs/hardware.md, Identifying stiffness, damping and actuator gains)",
             1e3 * period
         ));
     }
