@@ -30,7 +30,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-mod draw;
+pub(crate) mod draw;
 pub mod robot_view;
 mod series;
 mod style;

@@ -4,13 +4,13 @@
 
 use std::path::{Path, PathBuf};
 
-use plotters::coord::types::RangedCoordf64;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use softcbf_description::robot::Robot;
 
-use crate::plot::{PALETTE, display_name};
+use crate::plot::draw::draw_line;
+use crate::plot::{LineStyle, PALETTE, display_name};
 use crate::record::coordinate_names;
 
 use super::holdout::Prediction;
@@ -26,11 +26,16 @@ const HEADER: u32 = 84;
 const ROW: u32 = 300;
 
 /// The styles of measured, identified and file curves: colour, dash.
-const MEASURED: (RGBColor, Option<(u32, u32)>) = (RGBColor(0, 0, 0), None);
+const MEASURED: LineStyle = LineStyle {
+    colour: (0, 0, 0),
+    dash: None,
+};
 
-fn plant_style(k: usize) -> (RGBColor, Option<(u32, u32)>) {
-    let (r, g, b) = PALETTE[if k == 0 { 0 } else { 3 }];
-    (RGBColor(r, g, b), if k == 0 { None } else { Some((8, 5)) })
+fn plant_style(k: usize) -> LineStyle {
+    LineStyle {
+        colour: PALETTE[if k == 0 { 0 } else { 3 }],
+        dash: if k == 0 { None } else { Some((8, 5)) },
+    }
 }
 
 /// Draws `<stem>.png` and `<stem>.svg` of `prediction` into `dir` (created if missing).
@@ -61,25 +66,6 @@ pub fn draw(
             .map_err(|e| format!("{}: {e}", svg.display()))?;
     }
     Ok(vec![png, svg])
-}
-
-/// A line of `points` in `style`, `width` pixels wide, on `chart`.
-fn line<DB: DrawingBackend>(
-    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
-    points: Vec<(f64, f64)>,
-    (colour, dash): (RGBColor, Option<(u32, u32)>),
-    width: u32,
-) -> Result<(), String> {
-    let shape = colour.stroke_width(width);
-    match dash {
-        None => chart
-            .draw_series(LineSeries::new(points, shape))
-            .map(|_| ()),
-        Some((on, off)) => chart
-            .draw_series(DashedLineSeries::new(points, on, off, shape))
-            .map(|_| ()),
-    }
-    .map_err(|e| e.to_string())
 }
 
 fn draw_on<DB: DrawingBackend>(
@@ -117,10 +103,11 @@ fn draw_on<DB: DrawingBackend>(
         ),
     ];
     let mut x = 150;
-    for (label, (colour, dash)) in &labels {
+    for (label, style) in &labels {
         let y = 60;
-        let shape = colour.stroke_width(3);
-        match dash {
+        let (r, g, b) = style.colour;
+        let shape = RGBColor(r, g, b).stroke_width(3);
+        match &style.dash {
             None => header
                 .draw(&PathElement::new(vec![(x, y), (x + 40, y)], shape))
                 .map_err(e)?,
@@ -209,9 +196,9 @@ fn draw_on<DB: DrawingBackend>(
         // The file's prediction below, the identified one, the measurement on top (thin,
         // so that a prediction on it still shows).
         for (k, points) in predicted.into_iter().enumerate().rev() {
-            line(&mut chart, points, plant_style(k), 3)?;
+            draw_line(&mut chart, points, plant_style(k), 3)?;
         }
-        line(&mut chart, measured, MEASURED, 1)?;
+        draw_line(&mut chart, measured, MEASURED, 1)?;
     }
     Ok(())
 }

@@ -20,7 +20,7 @@ use crate::record::Record;
 /// Gap between the two parts of a split time axis \[px\].
 const SPLIT_GAP: u32 = 12;
 
-type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 type Area<DB> = DrawingArea<DB, Shift>;
 
 /// What each row of coordinate panels shows: caption and value-axis label.
@@ -70,7 +70,7 @@ fn tick_label(v: f64, decimals: usize) -> String {
 }
 
 /// Draws `points` as a line of `style`, `width` pixels wide.
-fn draw_line<DB: DrawingBackend>(
+pub(crate) fn draw_line<DB: DrawingBackend>(
     chart: &mut Chart<DB>,
     points: Vec<(f64, f64)>,
     style: LineStyle,
