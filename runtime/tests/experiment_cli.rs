@@ -45,6 +45,16 @@ fn summary(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&text).unwrap()
 }
 
+/// Every one of the six servos confirmed its torque off at the end (the safe stop).
+fn assert_torque_off(s: &serde_json::Value) {
+    let servos = s["torque_off"].as_array().expect("torque_off");
+    assert_eq!(servos.len(), 6, "{servos:?}");
+    assert!(
+        servos.iter().all(|servo| servo["confirmed"] == true),
+        "{servos:?}"
+    );
+}
+
 const TENSIONS: [&str; 6] = [
     "f module 1 tendon 1 [N]",
     "f module 1 tendon 2 [N]",
@@ -84,6 +94,7 @@ fn a_static_run_logs_its_rest_states_and_reports_them() {
     );
 
     let s = summary(&out);
+    assert_torque_off(&s);
     let e = &s["experiment"];
     assert_eq!(e["kind"], "static");
     assert_eq!(e["steps"], 16);
@@ -152,6 +163,7 @@ fn a_dynamic_run_keeps_its_tensions_in_their_limits_and_ends_by_itself() {
         "{stdout}"
     );
     let s = summary(&out);
+    assert_torque_off(&s);
     let e = &s["experiment"];
     assert_eq!(e["kind"], "dynamic");
     assert_eq!(e["complete"], true);

@@ -562,7 +562,8 @@ fn control_loop<P: ServoPort>(
                         },
                     ),
                 };
-                if tick_status == TickStatus::Filtered
+                // A relaxed QP changes the command too (its rows had no common point).
+                if matches!(tick_status, TickStatus::Filtered | TickStatus::Relaxed)
                     && controller
                         .tau()
                         .iter()
