@@ -148,6 +148,35 @@ fn exact_logs() -> &'static [PathBuf] {
 }
 
 /// Every parameter identified within `tolerance` of the plant's (`gains` per servo).
+/// The true values of `TRUE_MODULES` and `gains` (per servo) in [`Parameter::of_index`]
+/// order.
+fn true_values(gains: &[f64]) -> Vec<f64> {
+    TRUE_MODULES
+        .iter()
+        .enumerate()
+        .flat_map(|(i, numbers)| {
+            numbers
+                .iter()
+                .copied()
+                .chain(gains[3 * i..3 * i + 3].to_vec())
+        })
+        .collect()
+}
+
+/// Every identified number is within two of its standard errors of the true one.
+fn check_covered(id: &Identification, gains: &[f64]) {
+    for (j, truth) in true_values(gains).into_iter().enumerate() {
+        let z = (id.fit.theta[j] - truth) / id.fit.se[j];
+        assert!(
+            z.abs() < 2.0,
+            "{}: {} ± {} against the true {truth} ({z:+.1} standard errors)",
+            Parameter::describe(j),
+            id.fit.theta[j],
+            id.fit.se[j]
+        );
+    }
+}
+
 fn check_within(id: &Identification, tolerance: f64, gains: &[f64]) {
     for (i, numbers) in TRUE_MODULES.iter().enumerate() {
         let parameters = [
@@ -232,13 +261,23 @@ fn exact_readings_identify_every_number_within_two_percent_and_the_file_says_so(
         "{:?}",
         prediction.rms
     );
-    // Standard errors are reported for every identified number, and they are small.
+    // Standard errors are reported for every identified number. The jackknife's part is
+    // small on exact readings; the whole (with the timing and filter parts) is no smaller
+    // and covers the true value at two standard errors.
     for j in 0..id.file.len() {
+        let (se, jackknife) = (id.fit.se[j], id.fit.jackknife_se[j]);
         assert!(
-            id.fit.se[j] > 0.0 && id.fit.se[j] < 0.01 * id.fit.theta[j],
-            "{j}"
+            jackknife > 0.0 && jackknife < 0.01 * id.fit.theta[j] && se >= jackknife,
+            "{}: {se} (jackknife {jackknife})",
+            Parameter::describe(j)
+        );
+        assert!(
+            id.fit.timing_error[j].is_finite() && id.fit.filter_error[j].is_finite(),
+            "{}",
+            Parameter::describe(j)
         );
     }
+    check_covered(&id, &TRUE_GAINS);
 
     // The command: the robot file written, with only these numbers changed.
     let dir = out_dir("exact-cli");
@@ -250,6 +289,7 @@ fn exact_readings_identify_every_number_within_two_percent_and_the_file_says_so(
         out: out.clone(),
         figures: None,
         half_width: None,
+        timing_uncertainty_ms: None,
     };
     assert_eq!(softcbf::identify::run(args, &mut Console::new()), Ok(0));
     for figure in ["identify.png", "identify.svg"] {
@@ -448,10 +488,11 @@ fn quantized_noisy_readings_stay_within_two_percent() {
     .unwrap();
     let id = identify(robot, &logs, &Options::default()).unwrap();
     check_within(&id, 0.02, &TRUE_GAINS);
+    check_covered(&id, &TRUE_GAINS);
     // The jackknife errors are larger than the textbook ones (rows of overlapping windows
     // are correlated) yet of the same order.
     for j in 0..id.file.len() {
-        let ratio = id.fit.se[j] / id.fit.textbook_se[j];
+        let ratio = id.fit.jackknife_se[j] / id.fit.textbook_se[j];
         assert!(
             (0.3..30.0).contains(&ratio),
             "{}: {ratio}",
@@ -505,6 +546,7 @@ fn refused(dir: &Path, logs: Vec<PathBuf>) -> String {
         out: out.clone(),
         figures: None,
         half_width: None,
+        timing_uncertainty_ms: None,
     };
     let error = softcbf::identify::run(args, &mut Console::new()).unwrap_err();
     assert!(!out.exists(), "{error}: {} was written", out.display());
@@ -546,6 +588,7 @@ fn bad_logs_are_refused_naming_file_line_and_column_and_nothing_is_written() {
         out: out.clone(),
         figures: None,
         half_width: None,
+        timing_uncertainty_ms: None,
     };
     assert_eq!(softcbf::identify::run(args, &mut Console::new()), Ok(0));
     assert!(out.exists());

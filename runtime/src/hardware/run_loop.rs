@@ -66,6 +66,13 @@ pub use crate::hardware::run_outcome::{Deadlines, RunSummary, StopReason, Verdic
 pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RunSettings};
 pub use crate::record::Row;
 
+/// Time on the wire \[s\] of the goal-current sync write to `servos` servos at `baud`:
+/// the servos act on a command when its last byte has arrived (Protocol 2.0: 14 bytes of
+/// frame, address and length, and 3 per servo, 10 bits a byte).
+pub fn command_wire_time(servos: usize, baud: u32) -> f64 {
+    wire_time(14 + 3 * servos, baud).as_secs_f64()
+}
+
 /// Tolerances of the state prediction: `rtol = 1e-4`, `atol = 1e-7` (m, m/s). Over a 2 ms
 /// (33 ms) age they leave 3e-9 m (5e-7 m) and 1e-6 m/s (3e-5 m/s) of error against a
 /// tight-tolerance run, a hundred times below what the servos resolve (0.07 mm of tendon,
@@ -439,7 +446,7 @@ fn control_loop<P: ServoPort>(
     let baud = hardware.baud;
     let period = Duration::from_secs_f64(1.0 / settings.rate);
     let nominal = period.as_secs_f64();
-    let write_wire = wire_time(14 + 3 * map.n_servos(), baud).as_secs_f64();
+    let write_wire = command_wire_time(map.n_servos(), baud);
     let barrier_table = model.generated.barrier_table();
     let (min_rate, bus_watchdog) = (settings.min_rate(), settings.bus_watchdog());
     let start = Instant::now();

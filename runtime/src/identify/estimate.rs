@@ -48,8 +48,21 @@ pub struct KindStats {
 pub struct Fit {
     /// Every parameter's value: the estimate, or the file's where kept.
     pub theta: Vec<f64>,
-    /// Jackknife standard error of each estimate (NaN where kept).
+    /// Standard error of each estimate (NaN where kept): the jackknife's, combined by
+    /// [`add_systematic`] with the systematic parts once they are known.
     pub se: Vec<f64>,
+    /// The delete-one-block jackknife's standard error (the statistical part).
+    pub jackknife_se: Vec<f64>,
+    /// The systematic part from the commands' landing times: half the change of the
+    /// estimate when every landing moves from `−σ` to `+σ` (NaN: not computed).
+    pub timing_error: Vec<f64>,
+    /// The systematic part from the filter: the change of the estimate when the kernel's
+    /// half-width grows by half (NaN: not computed).
+    pub filter_error: Vec<f64>,
+    /// The unknowns the estimate solved for (what is held and tied).
+    pub(crate) config: Config,
+    /// The weight of each group of rows.
+    pub(crate) weights: Vec<f64>,
     /// The textbook standard error `σ √((XᵀX)⁻¹)ⱼⱼ` of the weighted rows (too optimistic
     /// for filtered rows, which are correlated; reported for comparison).
     pub textbook_se: Vec<f64>,
@@ -418,7 +431,12 @@ pub fn fit(rows: &Rows, file: &[f64]) -> Result<Fit, String> {
     Ok(Fit {
         stats: kind_stats(rows, &theta),
         theta,
+        jackknife_se: se.clone(),
         se,
+        timing_error: vec![f64::NAN; p],
+        filter_error: vec![f64::NAN; p],
+        config: cfg,
+        weights,
         textbook_se,
         status,
         tied,
@@ -426,6 +444,39 @@ pub fn fit(rows: &Rows, file: &[f64]) -> Result<Fit, String> {
         condition,
         blocks: rows.blocks.len(),
     })
+}
+
+/// The estimate from other rows (the same logs with a different landing time or filter)
+/// with `fit`'s unknowns and weights; `None` when it cannot be solved.
+pub fn refit(rows: &Rows, fit: &Fit) -> Option<Vec<f64>> {
+    let x = solve(&stack(parts(rows, &fit.weights, None), &fit.config))?;
+    let theta = fit.config.theta(&x, fit.theta.len());
+    theta.iter().all(|v| v.is_finite()).then_some(theta)
+}
+
+/// Sets the systematic parts from the refits (`timing`: with every landing moved by `−σ`
+/// and `+σ`; `filter`: with the wider kernel) and makes each identified parameter's
+/// standard error the root sum of squares of its three parts. A part not computed counts
+/// as zero and stays NaN in its own column.
+pub fn add_systematic(fit: &mut Fit, timing: Option<(&[f64], &[f64])>, filter: Option<&[f64]>) {
+    for j in 0..fit.theta.len() {
+        if fit.status[j] != Status::Identified {
+            continue;
+        }
+        if let Some((minus, plus)) = timing {
+            fit.timing_error[j] = 0.5 * (plus[j] - minus[j]).abs();
+        }
+        if let Some(wide) = filter {
+            fit.filter_error[j] = (wide[j] - fit.theta[j]).abs();
+        }
+        let part = |v: f64| if v.is_nan() { 0.0 } else { v * v };
+        fit.se[j] =
+            (part(fit.jackknife_se[j]) + part(fit.timing_error[j]) + part(fit.filter_error[j]))
+                .sqrt();
+        if fit.jackknife_se[j].is_nan() {
+            fit.se[j] = f64::NAN;
+        }
+    }
 }
 
 /// Residual RMS and R² of the static and dynamic rows at `theta`.

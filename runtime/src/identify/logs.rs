@@ -11,6 +11,7 @@ use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 use crate::hardware::description::Hardware;
+use crate::hardware::run_loop::command_wire_time;
 use crate::record::{TIME, coordinate_names};
 
 use super::IdentifyError;
@@ -50,8 +51,9 @@ pub struct Log {
     pub step: Vec<f64>,
     /// Whether each reading belongs to a static step's rest state.
     pub rest: Vec<bool>,
-    /// When the command computed from each reading reached the servos,
-    /// `t + compute + write` \[s\], non-decreasing; it holds until the next one lands.
+    /// When the command computed from each reading reached the servos: `t + compute +
+    /// write` and its time on the wire at the robot file's baud rate \[s\], non-decreasing;
+    /// it holds until the next one lands.
     pub landing: Vec<f64>,
     /// The goal current of each command, `servos` per command, signed as the register
     /// \[mA\].
@@ -318,6 +320,7 @@ fn read_trajectory(
         width,
         nq: expected.nq,
         register_end: f64::from(i16::MAX) * expected.hardware.current_unit * (1.0 - 1e-9),
+        wire: command_wire_time(servos, expected.hardware.baud),
     };
     let size = std::fs::metadata(file).map_err(io)?.len();
     let ranges = chunk_ranges(file, header_end, size, chunk_bytes.max(1)).map_err(io)?;
@@ -423,6 +426,8 @@ struct Layout {
     nq: usize,
     /// A goal current at least this large \[mA\] is at the register's end.
     register_end: f64,
+    /// The command's time on the wire \[s\]: it lands this long after the write.
+    wire: f64,
 }
 
 /// The readings of a range of lines; line numbers from 1 within the range.
@@ -598,7 +603,7 @@ fn parse_lines(
         chunk.rest.push(values[REST] == 1.0);
         chunk
             .landing
-            .push(values[T] + (values[COMPUTE] + values[WRITE]) * 1e-6);
+            .push(values[T] + (values[COMPUTE] + values[WRITE]) * 1e-6 + layout.wire);
         chunk.current.extend_from_slice(currents);
     }
     Ok(chunk)

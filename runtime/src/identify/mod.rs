@@ -10,7 +10,8 @@
 //!   differentiation" without differentiating data: the derivatives move onto the kernel).
 //! - `rows`, `regression`, `estimate`: the stacked weighted least-squares problem, reduced
 //!   by faer's QR block by block; excitation (zero columns, tiny singular values), held
-//!   and tied parameters, delete-one-block jackknife standard errors.
+//!   and tied parameters, delete-one-block jackknife standard errors, and the refits with
+//!   moved landing times and a wider filter that give their systematic parts.
 //! - `holdout`, [`figure`]: the last 20 % of each dynamic log predicted by the plant with
 //!   the identified numbers and with the file's.
 //! - [`output`]: the identified robot file, the input with only those numbers changed.
@@ -255,7 +256,20 @@ pub struct Options {
     pub horizon: f64,
     /// Simulate the held-out parts.
     pub predict: bool,
+    /// Standard uncertainty of the time between a reading's sampling and a command's
+    /// landing \[s\] ([`TIMING_UNCERTAINTY`] by default); with `systematic`, the fit is
+    /// repeated with every landing moved by `±` this.
+    pub timing_uncertainty: f64,
+    /// Add the systematic parts (timing and filter) to the standard errors.
+    pub systematic: bool,
 }
+
+/// The default standard uncertainty of the time between sampling and landing \[s\]. A
+/// USB full-speed adapter moves bytes in 1 ms frames: a write reaches the bus somewhere in
+/// the frame after the call, and a reply reaches the host somewhere in its frame. Two
+/// independent errors, each uniform over 1 ms, have a standard deviation of
+/// `√(2/12)` ms = 0.41 ms; rounded up.
+pub const TIMING_UNCERTAINTY: f64 = 0.5e-3;
 
 impl Default for Options {
     fn default() -> Self {
@@ -266,9 +280,15 @@ impl Default for Options {
             blocks: 20,
             horizon: 10.0,
             predict: true,
+            timing_uncertainty: TIMING_UNCERTAINTY,
+            systematic: true,
         }
     }
 }
+
+/// The filter part of the standard errors compares the fit with one whose kernel is this
+/// many times wider.
+pub const FILTER_CHECK: f64 = 1.5;
 
 /// Readings further apart than this \[s\] get the note on damping in the report.
 pub const SLOW_PERIOD: f64 = 1.0 / 60.0;
@@ -301,6 +321,8 @@ pub struct Identification {
     pub rows: [usize; 2],
     /// The filter's half-width \[s\].
     pub half_width: f64,
+    /// The timing uncertainty of the systematic part \[s\] (`None`: no systematic part).
+    pub timing_uncertainty: Option<f64>,
     /// Share of each dynamic log held out.
     pub holdout: f64,
     /// The held-out predictions, one per dynamic log.
@@ -438,9 +460,62 @@ pub fn identify(
         holdout: options.holdout.clamp(0.0, 0.9),
         blocks: options.blocks.max(1),
     };
-    let built = rows::build(&model, &hardware, logs, &settings)?;
+    // The rows, and with the systematic parts the same rows with every landing moved by
+    // ∓σ (one pass: only the currents' filtering differs).
+    let sigma = options.timing_uncertainty.max(0.0);
+    let shifts: &[f64] = if options.systematic && sigma > 0.0 {
+        &[0.0, -sigma, sigma]
+    } else {
+        &[0.0]
+    };
+    let mut variants = rows::build_shifted(&model, &hardware, logs, &settings, shifts)?;
+    let shifted = variants.split_off(1);
+    let Some(built) = variants.pop() else {
+        return Err(IdentifyError::Fit("no rows were built".into()));
+    };
     let file = file_values(robot, &hardware);
-    let fit = estimate::fit(&built, &file).map_err(IdentifyError::Fit)?;
+    let mut fit = estimate::fit(&built, &file).map_err(IdentifyError::Fit)?;
+    let mut notes = Vec::new();
+    if options.systematic {
+        // The same fit on rows made a little differently: the spread is an error the
+        // jackknife cannot see, as every block shares it.
+        let timing = match shifted.as_slice() {
+            [minus, plus] => estimate::refit(minus, &fit).zip(estimate::refit(plus, &fit)),
+            _ => None,
+        };
+        let wide = filter::Kernel::new(FILTER_CHECK * half_width);
+        let filter = rows::build(
+            &model,
+            &hardware,
+            logs,
+            &rows::RowSettings {
+                kernel: wide,
+                spacing: options.spacing.max(0.0) * wide.half_width(),
+                ..settings
+            },
+        )
+        .ok()
+        .and_then(|rows| estimate::refit(&rows, &fit));
+        if sigma > 0.0 && timing.is_none() {
+            notes.push(
+                "note: the fit with the landing times moved could not be solved; the standard \
+                 errors lack the timing part"
+                    .to_string(),
+            );
+        }
+        if filter.is_none() {
+            notes.push(format!(
+                "note: the fit with a {:.3} s filter could not be solved (logs too short?); the \
+                 standard errors lack the filter part",
+                wide.half_width()
+            ));
+        }
+        estimate::add_systematic(
+            &mut fit,
+            timing.as_ref().map(|(m, p)| (m.as_slice(), p.as_slice())),
+            filter.as_deref(),
+        );
+    }
     if fit.status.iter().all(|s| *s != Status::Identified) {
         let reasons: Vec<String> = fit
             .status
@@ -472,16 +547,19 @@ pub fn identify(
         rest_states: built.rest_states,
         rows: built.rows,
         half_width,
+        timing_uncertainty: options
+            .systematic
+            .then_some(options.timing_uncertainty.max(0.0)),
         holdout: settings.holdout,
         predictions: Vec::new(),
-        notes: Vec::new(),
+        notes,
     };
     if period > SLOW_PERIOD {
         identification.notes.push(format!(
             "note: readings every {:.1} ms: below 60 Hz the damping of light modules with fast \
              modes may be off by several percent (module 2 of the example robot: 2–8 % at 33 Hz \
-             on exact synthetic logs, 15 % through the emulator); widen [uncertainty] on damping \
-             accordingly (docs/hardware.md, Identifying stiffness, damping and actuator gains)",
+             on exact synthetic logs, 15–18 % through the emulator); widen [uncertainty] on \
+             damping accordingly (docs/hardware.md, Identifying stiffness, damping and actuator gains)",
             1e3 * period
         ));
     }
@@ -548,6 +626,11 @@ pub struct IdentifyArgs {
     /// whichever is longer).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub half_width: Option<f64>,
+    /// Standard uncertainty of the time from a reading's sampling to a command's landing
+    /// (ms), 0 to 20; part of every standard error (default 0.5: a USB full-speed
+    /// adapter's 1 ms frames; 0 leaves the timing part out).
+    #[arg(long, value_name = "MS", allow_negative_numbers = true)]
+    pub timing_uncertainty_ms: Option<f64>,
 }
 
 /// `softcbf identify`: reads, fits, writes the robot file and the figure, prints the report.
@@ -556,6 +639,13 @@ pub fn run(args: IdentifyArgs, console: &mut Console) -> Result<u8, String> {
         && !(t > 0.0 && t <= 10.0)
     {
         return Err(format!("--half-width: must be > 0 and ≤ 10 s, got {t}"));
+    }
+    if let Some(ms) = args.timing_uncertainty_ms
+        && !(0.0..=20.0).contains(&ms)
+    {
+        return Err(format!(
+            "--timing-uncertainty-ms: must be ≥ 0 and ≤ 20 ms, got {ms}"
+        ));
     }
     if args.logs.is_empty() {
         return Err(IdentifyError::NoLogs.to_string());
@@ -567,6 +657,9 @@ pub fn run(args: IdentifyArgs, console: &mut Console) -> Result<u8, String> {
     let logs = read_logs_for(&robot, &args.logs).map_err(|e| e.to_string())?;
     let options = Options {
         half_width: args.half_width,
+        timing_uncertainty: args
+            .timing_uncertainty_ms
+            .map_or(TIMING_UNCERTAINTY, |ms| 1e-3 * ms),
         ..Options::default()
     };
     let identification = identify(&robot, &logs, &options).map_err(|e| e.to_string())?;

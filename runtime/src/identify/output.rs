@@ -331,8 +331,7 @@ pub fn report(id: &Identification) -> Vec<String> {
     let fit = &id.fit;
     let mut lines = vec![format!(
         "identify: {} logs ({}), {} rest states and {} filtered instants ({} static + {} \
-         dynamic rows); filter half-width {:.3} s; standard errors by delete-one-block \
-         jackknife over {} blocks",
+         dynamic rows); filter half-width {:.3} s; {}",
         id.logs.len(),
         id.logs
             .iter()
@@ -353,11 +352,24 @@ pub fn report(id: &Identification) -> Vec<String> {
         id.rows[0],
         id.rows[1],
         id.half_width,
-        fit.blocks
+        match id.timing_uncertainty {
+            Some(sigma) => format!(
+                "each standard error combines a delete-one-block jackknife over {} blocks with \
+                 the change under landing times moved by ±{:.2} ms and under a filter {}× wider \
+                 (each part in % of the estimate, on the right)",
+                fit.blocks,
+                1e3 * sigma,
+                super::FILTER_CHECK
+            ),
+            None => format!(
+                "standard errors by delete-one-block jackknife over {} blocks",
+                fit.blocks
+            ),
+        }
     )];
     lines.push(format!(
-        "{:<24} {:>26} {:>12} {:>9}",
-        "parameter", "estimate ± std. error", "file", "change"
+        "{:<24} {:>26} {:>12} {:>9}   {:>6} {:>6} {:>6}",
+        "parameter", "estimate ± std. error", "file", "change", "jack.", "timing", "filter"
     ));
     for j in 0..id.file.len() {
         let (module, parameter) = Parameter::of_index(j);
@@ -366,6 +378,19 @@ pub fn report(id: &Identification) -> Vec<String> {
             module + 1,
             parameter.symbol(),
             parameter.unit()
+        );
+        let share = |part: f64| {
+            if part.is_nan() || fit.status[j] != Status::Identified {
+                String::new()
+            } else {
+                format!("{:.2}", 100.0 * part / fit.theta[j].abs())
+            }
+        };
+        let parts = format!(
+            "{:>6} {:>6} {:>6}",
+            share(fit.jackknife_se[j]),
+            share(fit.timing_error[j]),
+            share(fit.filter_error[j])
         );
         let (estimate, change) = match &fit.status[j] {
             Status::Identified => {
@@ -383,7 +408,7 @@ pub fn report(id: &Identification) -> Vec<String> {
             Status::Kept(_) => ("kept".into(), String::new()),
         };
         lines.push(format!(
-            "{name:<24} {estimate:>26} {:>12} {change:>9}",
+            "{name:<24} {estimate:>26} {:>12} {change:>9}   {parts}",
             short(id.file[j])
         ));
     }
@@ -436,6 +461,7 @@ pub fn report(id: &Identification) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::identify::regression::Config;
     use crate::identify::{Fit, KindStats, LogFacts, file_values};
 
     /// An identification of `robot` that scales every number by 1.2, but keeps module 2's
@@ -467,6 +493,14 @@ mod tests {
             fit: Fit {
                 theta,
                 se: vec![1e-5; file.len()],
+                jackknife_se: vec![1e-5; file.len()],
+                timing_error: vec![f64::NAN; file.len()],
+                filter_error: vec![f64::NAN; file.len()],
+                config: Config {
+                    unknowns: Vec::new(),
+                    held: Vec::new(),
+                },
+                weights: Vec::new(),
                 textbook_se: vec![1e-5; file.len()],
                 status,
                 tied: vec![true; 2],
@@ -485,6 +519,7 @@ mod tests {
             rest_states: 2,
             rows: [12, 60],
             half_width: 0.08,
+            timing_uncertainty: None,
             holdout: 0.2,
             predictions: Vec::new(),
             notes: Vec::new(),

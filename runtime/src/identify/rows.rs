@@ -239,6 +239,20 @@ pub fn build(
     logs: &[Log],
     settings: &RowSettings,
 ) -> Result<Rows, IdentifyError> {
+    let mut rows = build_shifted(model, hardware, logs, settings, &[0.0])?;
+    rows.pop()
+        .ok_or_else(|| IdentifyError::Fit("no rows were built".into()))
+}
+
+/// The rows of every log once per entry of `shifts`, each with every command's landing
+/// moved by that much \[s\] (in one pass: the filtered readings and the model are shared).
+pub fn build_shifted(
+    model: &Model,
+    hardware: &Hardware,
+    logs: &[Log],
+    settings: &RowSettings,
+    shifts: &[f64],
+) -> Result<Vec<Rows>, IdentifyError> {
     let modules = model.n_modules();
     let p = PER_MODULE * modules;
     let geometry = Geometry::new(model, hardware);
@@ -287,19 +301,27 @@ pub fn build(
             &inputs[l],
             &per_log[l][range.clone()],
             settings,
+            shifts,
         )
     });
-    let mut reduced: Vec<Vec<Option<Reduced>>> = (0..blocks)
-        .map(|_| (0..2 * modules).map(|_| None).collect())
+    let mut reduced: Vec<Vec<Vec<Option<Reduced>>>> = shifts
+        .iter()
+        .map(|_| {
+            (0..blocks)
+                .map(|_| (0..2 * modules).map(|_| None).collect())
+                .collect()
+        })
         .collect();
-    for ((_, block, _), parts) in units.iter().zip(results) {
-        for (g, part) in parts?.into_iter().enumerate() {
-            let Some(part) = part else { continue };
-            let slot = &mut reduced[*block][g];
-            *slot = Some(match slot.take() {
-                Some(existing) => existing.merge(part),
-                None => part,
-            });
+    for ((_, block, _), per_shift) in units.iter().zip(results) {
+        for (variant, parts) in reduced.iter_mut().zip(per_shift?) {
+            for (g, part) in parts.into_iter().enumerate() {
+                let Some(part) = part else { continue };
+                let slot = &mut variant[*block][g];
+                *slot = Some(match slot.take() {
+                    Some(existing) => existing.merge(part),
+                    None => part,
+                });
+            }
         }
     }
     let (mut instants, mut rest_states) = (0, 0);
@@ -309,13 +331,16 @@ pub fn build(
             Item::Rest(..) => rest_states += 1,
         }
     }
-    Ok(Rows {
-        blocks: reduced,
-        modules,
-        instants,
-        rest_states,
-        rows: [rest_states * nq, instants * nq],
-    })
+    Ok(reduced
+        .into_iter()
+        .map(|blocks| Rows {
+            blocks,
+            modules,
+            instants,
+            rest_states,
+            rows: [rest_states * nq, instants * nq],
+        })
+        .collect())
 }
 
 /// The error of a log that yields no row.
@@ -358,7 +383,8 @@ fn tension_inputs(log: &Log, geometry: &Geometry) -> Vec<f64> {
         .collect()
 }
 
-/// Reduces the rows of `items` of `log` into one accumulator per group.
+/// Reduces the rows of `items` of `log` into one accumulator per group, once per landing
+/// shift.
 fn reduce_unit(
     model: &Model,
     geometry: &Geometry,
@@ -366,7 +392,8 @@ fn reduce_unit(
     inputs: &[f64],
     items: &[Item],
     settings: &RowSettings,
-) -> Result<Vec<Option<Reduced>>, IdentifyError> {
+    shifts: &[f64],
+) -> Result<Vec<Vec<Option<Reduced>>>, IdentifyError> {
     let modules = model.n_modules();
     let nq = model.nq();
     let p = PER_MODULE * modules;
@@ -374,8 +401,10 @@ fn reduce_unit(
     let kernel = &settings.kernel;
     let t_half = kernel.half_width();
 
-    let mut accumulators: Vec<Accumulator> =
-        (0..2 * modules).map(|_| Accumulator::new(p + 1)).collect();
+    let mut accumulators: Vec<Vec<Accumulator>> = shifts
+        .iter()
+        .map(|_| (0..2 * modules).map(|_| Accumulator::new(p + 1)).collect())
+        .collect();
     let mut ws = DynamicsWorkspace::new(model);
     let (mut fq, mut fqd, mut fqdd) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
     let mut fu = vec![0.0; servos];
@@ -384,7 +413,8 @@ fn reduce_unit(
     let mut row = vec![0.0; p + 1];
     let n = log.readings();
     let mut lo = 0;
-    let mut command = 0;
+    // Per shift: the first command in force at the current window's start.
+    let mut commands = vec![0usize; shifts.len()];
     let state_error = |j: usize, what: String| IdentifyError::Value {
         file: log.file.clone(),
         line: log.line[j],
@@ -418,24 +448,6 @@ fn reduce_unit(
                     }
                     k += 1;
                 }
-                // Commands in force over the window: from the last landing at or before
-                // its start to the last one before its end.
-                while command + 1 < log.landing.len() && log.landing[command + 1] <= t - t_half {
-                    command += 1;
-                }
-                fu.fill(0.0);
-                let mut m = command;
-                let mut before = kernel.cumulative(t - log.landing[m]);
-                while m < log.landing.len() && log.landing[m] < t + t_half {
-                    let hold_end = log.landing.get(m + 1).copied().unwrap_or(log.end);
-                    let after = kernel.cumulative(t - hold_end);
-                    let weight = before - after;
-                    for (slot, value) in fu.iter_mut().zip(command_inputs(m)) {
-                        *slot += weight * value;
-                    }
-                    before = after;
-                    m += 1;
-                }
                 for r in 0..nq {
                     q_bar[r] = fq[r] / f1;
                     v_bar[r] = fqd[r] / f1;
@@ -449,12 +461,42 @@ fn reduce_unit(
                     let inertia: f64 = row.iter().zip(&fqdd).map(|(m, a)| m * a).sum();
                     *slot = inertia + f1 * (ws.bias[r] + ws.gravity[r]);
                 }
-                if !known.iter().chain(&fu).all(|v| v.is_finite()) {
+                if !known.iter().all(|v| v.is_finite()) {
                     return Err(state_error(j, "the model gives a non-finite force".into()));
                 }
-                for r in 0..nq {
-                    geometry.row(r, fq[r], fqd[r], &fu, -known[r], &mut row);
-                    accumulators[modules + r / 3].push(&row, r % 3);
+                for ((&shift, command), accumulators) in
+                    shifts.iter().zip(&mut commands).zip(&mut accumulators)
+                {
+                    // Commands in force over the window: from the last landing at or
+                    // before its start to the last one before its end.
+                    let landing = |m: usize| log.landing[m] + shift;
+                    while *command + 1 < log.landing.len() && landing(*command + 1) <= t - t_half {
+                        *command += 1;
+                    }
+                    fu.fill(0.0);
+                    let mut m = *command;
+                    let mut before = kernel.cumulative(t - landing(m));
+                    while m < log.landing.len() && landing(m) < t + t_half {
+                        let hold_end = if m + 1 < log.landing.len() {
+                            landing(m + 1)
+                        } else {
+                            log.end
+                        };
+                        let after = kernel.cumulative(t - hold_end);
+                        let weight = before - after;
+                        for (slot, value) in fu.iter_mut().zip(command_inputs(m)) {
+                            *slot += weight * value;
+                        }
+                        before = after;
+                        m += 1;
+                    }
+                    if !fu.iter().all(|v| v.is_finite()) {
+                        return Err(state_error(j, "a non-finite goal current".into()));
+                    }
+                    for r in 0..nq {
+                        geometry.row(r, fq[r], fqd[r], &fu, -known[r], &mut row);
+                        accumulators[modules + r / 3].push(&row, r % 3);
+                    }
                 }
             }
             Item::Rest(start, end) => {
@@ -496,10 +538,15 @@ fn reduce_unit(
                 }
                 for r in 0..nq {
                     geometry.row(r, q_bar[r], 0.0, &fu, -ws.gravity[r], &mut row);
-                    accumulators[r / 3].push(&row, r % 3);
+                    for accumulators in &mut accumulators {
+                        accumulators[r / 3].push(&row, r % 3);
+                    }
                 }
             }
         }
     }
-    Ok(accumulators.into_iter().map(Accumulator::finish).collect())
+    Ok(accumulators
+        .into_iter()
+        .map(|groups| groups.into_iter().map(Accumulator::finish).collect())
+        .collect())
 }

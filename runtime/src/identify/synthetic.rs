@@ -18,6 +18,7 @@ use crate::dynamics::{BarrierTerms, DynamicsWorkspace, model_terms};
 use crate::hardware::emulator::SensorNoise;
 use crate::hardware::log::extra_columns;
 use crate::hardware::mapping::TendonMap;
+use crate::hardware::run_loop::command_wire_time;
 use crate::integrator::Tolerances;
 use crate::model::Model;
 use crate::plant::Plant;
@@ -61,7 +62,8 @@ pub struct SyntheticRun<'a> {
     pub sampled: f64,
     /// Time from the row's `t` to the command computed \[s\].
     pub compute: f64,
-    /// Time to write the command \[s\]; it lands `compute + write` after `t`.
+    /// Time to write the command \[s\]; it lands `compute + write` and its wire time after
+    /// `t`.
     pub write: f64,
     /// The experiment `summary.json` names.
     pub kind: Option<ExperimentKind>,
@@ -167,6 +169,8 @@ pub fn write_log(
     let mut tau = vec![0.0; nq];
     let mut extra = vec![0.0; names.len()];
     let unit = map.hardware().current_unit;
+    // A command lands when its last byte has crossed the bus, as `read_logs` assumes.
+    let wire = command_wire_time(map.hardware().servo_ids().len(), map.hardware().baud);
     let ticks = (run.duration * run.rate).floor() as usize + 1;
     let mut draws =
         Xoshiro256PlusPlus::seed_from_u64(run.servo_readings.map_or(1, |noise| noise.seed));
@@ -264,7 +268,7 @@ pub fn write_log(
         summary.rows += 1;
         summary.rest_rows += usize::from(phase.rest);
         // The command lands, and holds until the next one.
-        let landing = t + run.compute + run.write;
+        let landing = t + run.compute + run.write + wire;
         plant
             .advance(landing - plant.time())
             .map_err(|e| fail(&plant, e.to_string()))?;
