@@ -48,8 +48,8 @@ pub struct KindStats {
 pub struct Fit {
     /// Every parameter's value: the estimate, or the file's where kept.
     pub theta: Vec<f64>,
-    /// Standard error of each estimate (NaN where kept): the jackknife's, combined by
-    /// [`add_systematic`] with the systematic parts once they are known.
+    /// Standard error of each estimate (NaN where kept): the jackknife's, combined with
+    /// the timing and filter parts (root sum of squares) once they are known.
     pub se: Vec<f64>,
     /// The delete-one-block jackknife's standard error (the statistical part).
     pub jackknife_se: Vec<f64>,
