@@ -355,10 +355,14 @@ pub fn report(id: &Identification) -> Vec<String> {
         match id.timing_uncertainty {
             Some(sigma) => format!(
                 "each standard error combines a delete-one-block jackknife over {} blocks with \
-                 the change under landing times moved by ±{:.2} ms and under a filter {}× wider \
-                 (each part in % of the estimate, on the right)",
+                 the change {}under a filter {}× wider (each part in % of the estimate, on the \
+                 right)",
                 fit.blocks,
-                1e3 * sigma,
+                if sigma > 0.0 {
+                    format!("under landing times moved by ±{:.2} ms and ", 1e3 * sigma)
+                } else {
+                    String::new()
+                },
                 super::FILTER_CHECK
             ),
             None => format!(
