@@ -49,7 +49,7 @@ pub struct Fit {
     /// Every parameter's value: the estimate, or the file's where kept.
     pub theta: Vec<f64>,
     /// Standard error of each estimate (NaN where kept): the jackknife's, combined with
-    /// the timing and filter parts (root sum of squares) once they are known.
+    /// the timing, filter and noise parts (root sum of squares) once they are known.
     pub se: Vec<f64>,
     /// The delete-one-block jackknife's standard error (the statistical part).
     pub jackknife_se: Vec<f64>,
@@ -59,6 +59,9 @@ pub struct Fit {
     /// The systematic part from the filter: the change of the estimate when the kernel's
     /// half-width grows by half (NaN: not computed).
     pub filter_error: Vec<f64>,
+    /// The systematic part from the readings' noise: the change of the estimate when as
+    /// much noise again is added to the readings (NaN: not computed).
+    pub noise_error: Vec<f64>,
     /// The unknowns the estimate solved for (what is held and tied).
     pub(crate) config: Config,
     /// The weight of each group of rows.
@@ -435,6 +438,7 @@ pub fn fit(rows: &Rows, file: &[f64]) -> Result<Fit, String> {
         se,
         timing_error: vec![f64::NAN; p],
         filter_error: vec![f64::NAN; p],
+        noise_error: vec![f64::NAN; p],
         config: cfg,
         weights,
         textbook_se,
@@ -454,25 +458,40 @@ pub fn refit(rows: &Rows, fit: &Fit) -> Option<Vec<f64>> {
     theta.iter().all(|v| v.is_finite()).then_some(theta)
 }
 
-/// Sets the systematic parts from the refits (`timing`: with every landing moved by `−σ`
-/// and `+σ`; `filter`: with the wider kernel) and makes each identified parameter's
-/// standard error the root sum of squares of its three parts. A part not computed counts
-/// as zero and stays NaN in its own column.
-pub fn add_systematic(fit: &mut Fit, timing: Option<(&[f64], &[f64])>, filter: Option<&[f64]>) {
+/// The refits of [`add_systematic`], each `None` where not computed.
+#[derive(Default)]
+pub struct Refits {
+    /// With every landing moved by `−σ` and by `+σ`.
+    pub timing: Option<(Vec<f64>, Vec<f64>)>,
+    /// With the wider kernel.
+    pub filter: Option<Vec<f64>>,
+    /// With as much noise again added to the readings.
+    pub noise: Option<Vec<f64>>,
+}
+
+/// Sets the systematic parts from the refits and makes each identified parameter's
+/// standard error the root sum of squares of its parts. A part not computed counts as
+/// zero and stays NaN in its own column.
+pub fn add_systematic(fit: &mut Fit, refits: &Refits) {
     for j in 0..fit.theta.len() {
         if fit.status[j] != Status::Identified {
             continue;
         }
-        if let Some((minus, plus)) = timing {
+        if let Some((minus, plus)) = &refits.timing {
             fit.timing_error[j] = 0.5 * (plus[j] - minus[j]).abs();
         }
-        if let Some(wide) = filter {
+        if let Some(wide) = &refits.filter {
             fit.filter_error[j] = (wide[j] - fit.theta[j]).abs();
         }
+        if let Some(noisy) = &refits.noise {
+            fit.noise_error[j] = (noisy[j] - fit.theta[j]).abs();
+        }
         let part = |v: f64| if v.is_nan() { 0.0 } else { v * v };
-        fit.se[j] =
-            (part(fit.jackknife_se[j]) + part(fit.timing_error[j]) + part(fit.filter_error[j]))
-                .sqrt();
+        fit.se[j] = (part(fit.jackknife_se[j])
+            + part(fit.timing_error[j])
+            + part(fit.filter_error[j])
+            + part(fit.noise_error[j]))
+        .sqrt();
         if fit.jackknife_se[j].is_nan() {
             fit.se[j] = f64::NAN;
         }

@@ -11,7 +11,8 @@
 //! - `rows`, `regression`, `estimate`: the stacked weighted least-squares problem, reduced
 //!   by faer's QR block by block; excitation (zero columns, tiny singular values), held
 //!   and tied parameters, delete-one-block jackknife standard errors, and the refits with
-//!   moved landing times and a wider filter that give their systematic parts.
+//!   moved landing times, a wider filter and more noise ([`noise`]) that give their
+//!   systematic parts.
 //! - `holdout`, [`figure`]: the last 20 % of each dynamic log predicted by the plant with
 //!   the identified numbers and with the file's.
 //! - [`output`]: the identified robot file, the input with only those numbers changed.
@@ -43,6 +44,7 @@ pub mod output;
 pub mod synthetic;
 
 mod estimate;
+mod noise;
 mod regression;
 mod rows;
 
@@ -496,6 +498,19 @@ pub fn identify(
         )
         .ok()
         .and_then(|rows| estimate::refit(&rows, &fit));
+        // The noise measured at rest, added once more: the change approximates the bias
+        // the noise already in the readings causes (it grows with the noise's variance).
+        let noise = noise::at_rest(logs)
+            .filter(|sigma| sigma.iter().any(|&s| s > 0.0))
+            .and_then(|sigma| {
+                let noisy: Vec<Log> = logs
+                    .iter()
+                    .enumerate()
+                    .map(|(l, log)| noise::with_added(log, &sigma, noise::SEED + l as u64))
+                    .collect();
+                rows::build(&model, &hardware, &noisy, &settings).ok()
+            })
+            .and_then(|rows| estimate::refit(&rows, &fit));
         if sigma > 0.0 && timing.is_none() {
             notes.push(
                 "note: the fit with the landing times moved could not be solved; the standard \
@@ -510,10 +525,20 @@ pub fn identify(
                 wide.half_width()
             ));
         }
+        if noise.is_none() {
+            notes.push(
+                "note: the standard errors lack the noise part (no rest state in the logs shows \
+                 noise to measure, or the fit with more noise failed)"
+                    .to_string(),
+            );
+        }
         estimate::add_systematic(
             &mut fit,
-            timing.as_ref().map(|(m, p)| (m.as_slice(), p.as_slice())),
-            filter.as_deref(),
+            &estimate::Refits {
+                timing,
+                filter,
+                noise,
+            },
         );
     }
     if fit.status.iter().all(|s| *s != Status::Identified) {

@@ -355,8 +355,8 @@ pub fn report(id: &Identification) -> Vec<String> {
         match id.timing_uncertainty {
             Some(sigma) => format!(
                 "each standard error combines a delete-one-block jackknife over {} blocks with \
-                 the change {}under a filter {}× wider (each part in % of the estimate, on the \
-                 right)",
+                 the change {}under a filter {}× wider and with the readings' noise doubled in \
+                 variance (each part in % of the estimate, on the right)",
                 fit.blocks,
                 if sigma > 0.0 {
                     format!("under landing times moved by ±{:.2} ms and ", 1e3 * sigma)
@@ -372,8 +372,15 @@ pub fn report(id: &Identification) -> Vec<String> {
         }
     )];
     lines.push(format!(
-        "{:<24} {:>26} {:>12} {:>9}   {:>6} {:>6} {:>6}",
-        "parameter", "estimate ± std. error", "file", "change", "jack.", "timing", "filter"
+        "{:<24} {:>26} {:>12} {:>9}   {:>6} {:>6} {:>6} {:>6}",
+        "parameter",
+        "estimate ± std. error",
+        "file",
+        "change",
+        "jack.",
+        "timing",
+        "filter",
+        "noise"
     ));
     for j in 0..id.file.len() {
         let (module, parameter) = Parameter::of_index(j);
@@ -391,10 +398,11 @@ pub fn report(id: &Identification) -> Vec<String> {
             }
         };
         let parts = format!(
-            "{:>6} {:>6} {:>6}",
+            "{:>6} {:>6} {:>6} {:>6}",
             share(fit.jackknife_se[j]),
             share(fit.timing_error[j]),
-            share(fit.filter_error[j])
+            share(fit.filter_error[j]),
+            share(fit.noise_error[j])
         );
         let (estimate, change) = match &fit.status[j] {
             Status::Identified => {
@@ -500,6 +508,7 @@ mod tests {
                 jackknife_se: vec![1e-5; file.len()],
                 timing_error: vec![f64::NAN; file.len()],
                 filter_error: vec![f64::NAN; file.len()],
+                noise_error: vec![f64::NAN; file.len()],
                 config: Config {
                     unknowns: Vec::new(),
                     held: Vec::new(),

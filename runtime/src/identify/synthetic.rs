@@ -11,11 +11,12 @@
 
 use std::path::{Path, PathBuf};
 
+use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
-use rand::{RngExt, SeedableRng};
 
 use crate::dynamics::{BarrierTerms, DynamicsWorkspace, model_terms};
 use crate::hardware::emulator::SensorNoise;
+use crate::hardware::emulator::servos::standard_normal;
 use crate::hardware::log::extra_columns;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::command_wire_time;
@@ -345,12 +346,6 @@ impl Multisine {
             .sum::<f64>()
             * self.scale
     }
-}
-
-/// A draw of the standard normal distribution (Box–Muller, one of the pair).
-fn standard_normal(draws: &mut Xoshiro256PlusPlus) -> f64 {
-    let [u, v]: [f64; 2] = draws.random();
-    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
 }
 
 /// `q`, `q̇` as the servos report them: each angle and rate with `noise` (in register

@@ -138,7 +138,7 @@ pub struct Servos<'m> {
 const NOISE_STREAM: u64 = 0x9E37_79B9_7F4A_7C15;
 
 /// A draw of the standard normal distribution (Box–Muller, one of the pair).
-fn standard_normal(draws: &mut Xoshiro256PlusPlus) -> f64 {
+pub(crate) fn standard_normal(draws: &mut Xoshiro256PlusPlus) -> f64 {
     let [u, v]: [f64; 2] = draws.random();
     // 1 − u lies in (0, 1]: its logarithm is finite.
     (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
