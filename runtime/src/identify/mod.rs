@@ -11,7 +11,7 @@
 //! - `rows`, `regression`, `estimate`: the stacked weighted least-squares problem, reduced
 //!   by faer's QR block by block; excitation (zero columns, tiny singular values), held
 //!   and tied parameters, delete-one-block jackknife standard errors, and the refits with
-//!   moved landing times, a wider filter and more noise ([`noise`]) that give their
+//!   moved landing times, a wider filter and more noise (`noise`) that give their
 //!   systematic parts.
 //! - `holdout`, [`figure`]: the last 20 % of each dynamic log predicted by the plant with
 //!   the identified numbers and with the file's.
