@@ -24,6 +24,7 @@
 //! | [`protocol`] | Dynamixel Protocol 2.0 codec and bus client |
 //! | [`hardware`] | the servos driven by the same tick (`softcbf run`), and their emulator |
 //! | [`identify`] | `softcbf identify`: stiffness, damping and actuator gains from run logs |
+//! | [`verify`] | `softcbf verify`: many closed-loop runs drawn from declared ranges, sharded and merged |
 //! | [`cli`] | what the subcommands share: loading robots, reading vectors and numbers |
 //! | [`exit`] | the command's exit statuses (safe, unsafe, fault, never started) |
 //!
@@ -73,3 +74,4 @@ pub mod scenario;
 pub mod settings;
 pub mod sim;
 pub mod spatial;
+pub mod verify;

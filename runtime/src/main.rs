@@ -119,6 +119,9 @@ enum Command {
     /// Identify stiffness, damping and actuator gains from run logs, and write the robot
     /// file with those numbers (and a figure of a held-out part predicted).
     Identify(softcbf::identify::IdentifyArgs),
+    /// Run a batch of closed-loop simulations drawn from a scenario's `[verify]` ranges
+    /// (or one shard of it), merge shards, or replay one run.
+    Verify(softcbf::verify::cli::VerifyArgs),
 }
 
 fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
@@ -155,6 +158,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
         Command::Plot(args) => softcbf::replot::plot(args, console),
         Command::Identify(args) => softcbf::identify::run(args, console),
+        Command::Verify(args) => softcbf::verify::cli::verify(args, console),
         Command::Simulate(args) => run_simulation(args, console),
     }
 }

@@ -56,10 +56,26 @@ pub struct Scenario {
     /// robot). Its structure is the controller's robot's, so both use one generated model;
     /// its numbers may differ (model mismatch).
     pub plant: Option<Robot>,
+    /// Noise on the state the controller samples (`None`: it samples the plant's state
+    /// exactly). Set by `softcbf verify`; a scenario file has no field for it.
+    pub sensor_noise: Option<SensorNoise>,
     /// The scenario file (`<embedded …>` for the built-in one).
     pub file: String,
     /// Where the layered settings came from.
     pub sources: Sources,
+}
+
+/// Gaussian noise added to every sample of the state the controller is given: independent
+/// per coordinate and tick, drawn from one seeded generator (the same seed gives the same
+/// noise).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorNoise {
+    /// Standard deviation on `q` \[m\].
+    pub q: f64,
+    /// Standard deviation on `q̇` \[m/s\].
+    pub qd: f64,
+    /// Seed of the draws.
+    pub seed: u64,
 }
 
 /// Where a scenario's layered settings came from ([`crate::settings`]): the command line,
@@ -153,6 +169,8 @@ struct RawScenario {
     gains: RawGains,
     #[serde(default)]
     integrator: RawIntegrator,
+    /// `softcbf verify`'s ranges, read by [`crate::verify::spec`].
+    verify: Option<crate::verify::spec::RawVerify>,
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -254,6 +272,24 @@ impl ScenarioFile {
     /// The file this scenario was read from.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The file's text.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// The checker of this file's values (errors naming file, line and field).
+    pub(crate) fn checker(&self) -> Checker<'_> {
+        Checker {
+            text: &self.text,
+            path: &self.path,
+        }
+    }
+
+    /// The `[verify]` table, if the file has one.
+    pub(crate) fn verify_table(&self) -> Option<&crate::verify::spec::RawVerify> {
+        self.raw.verify.as_ref()
     }
 
     /// The robot file the scenario names, relative paths taken from the scenario's folder
@@ -490,6 +526,7 @@ impl ScenarioFile {
             tolerances,
             record_period: record_period.value,
             plant: plant.value,
+            sensor_noise: None,
             sources: Sources {
                 gains,
                 control_period: control_period.source,
@@ -850,6 +887,19 @@ fn state(
     };
     c.state(problem, v, field)?;
     Ok(values)
+}
+
+/// A given state vector of `robot` (`coordinates`: a `q`, else a `q̇`), checked like the
+/// scenario's initial state.
+pub(crate) fn state_vector(
+    c: &Checker<'_>,
+    v: &RawVector,
+    field: &str,
+    robot: &Robot,
+    coordinates: bool,
+) -> Result<Vec<f64>, FileError> {
+    let part = if coordinates { Coordinates } else { Velocities };
+    state(c, Some(v), field, robot, part)
 }
 
 /// Checks that the array `v` has `n` entries (`what` says what they are).

@@ -9,7 +9,9 @@
 //! every row. The plant may integrate another robot of the same structure
 //! ([`Scenario::plant`]) than the one the controller uses. A failure of the plant
 //! integration ends the run early; the record and summary keep what happened up to it and
-//! [`RunSummary::stopped`] says why. Nothing allocates inside the loop.
+//! [`RunSummary::stopped`] says why. With [`Scenario::sensor_noise`] the controller is given
+//! a noisy sample of the state; the record and the lowest barrier keep the plant's own.
+//! Nothing allocates inside the loop.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -18,7 +20,11 @@ use serde::Serialize;
 use softcbf_description::barriers::KIND_GROUPS;
 use softcbf_generated::{BarrierInfo, BarrierKind, KindGroup};
 
+use rand::SeedableRng;
+use rand::rngs::Xoshiro256PlusPlus;
+
 use crate::control::{self, Controller, ControllerError, TickStatus};
+use crate::hardware::emulator::servos::standard_normal;
 use crate::integrator::IntegratorError;
 use crate::model::{Model, ModelError};
 use crate::plant::Plant;
@@ -474,19 +480,51 @@ pub fn simulate(
     let (mut control_time, mut integration_time) = (Duration::ZERO, Duration::ZERO);
     let mut stopped = None;
     let report_every = (ticks / 100).max(1);
+    // With sensor noise the controller samples a noisy state; the record and the lowest
+    // barrier keep the plant's own.
+    let mut noise = scenario.sensor_noise.map(|noise| {
+        (
+            noise,
+            Xoshiro256PlusPlus::seed_from_u64(noise.seed),
+            vec![0.0; nq],
+            vec![0.0; nq],
+            vec![0.0; nb],
+        )
+    });
     let start = Instant::now();
     let mut t = 0.0;
     'ticks: for k in 0..=ticks {
         t = k as f64 * period;
         let tick_start = Instant::now();
+        let (sampled_q, sampled_qd) = match &mut noise {
+            Some((spread, draws, q, qd, _)) => {
+                for (sample, &x) in q.iter_mut().zip(plant.q()) {
+                    *sample = x + spread.q * standard_normal(draws);
+                }
+                for (sample, &x) in qd.iter_mut().zip(plant.qd()) {
+                    *sample = x + spread.qd * standard_normal(draws);
+                }
+                (&q[..], &qd[..])
+            }
+            None => (plant.q(), plant.qd()),
+        };
         let status = control::tick(
             model,
             &mut controller,
-            plant.q(),
-            plant.qd(),
+            sampled_q,
+            sampled_qd,
             reference.sample(t),
         );
         control_time += tick_start.elapsed();
+        let barriers = match &mut noise {
+            Some((.., true_barriers)) => {
+                model
+                    .generated
+                    .barriers(&model.params, plant.q(), true_barriers);
+                &true_barriers[..]
+            }
+            None => controller.barriers(),
+        };
 
         counts.ticks += 1;
         match status {
@@ -518,13 +556,7 @@ pub fn simulate(
             }
             TickStatus::InvalidState(_) => counts.invalid_state += 1,
         }
-        observe(
-            &mut minimum,
-            &mut lowest_by_kind,
-            table,
-            controller.barriers(),
-            t,
-        );
+        observe(&mut minimum, &mut lowest_by_kind, table, barriers, t);
         let applied = if k < ticks { controller.tau() } else { &[][..] };
         max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
         record.push_row(&Row {
@@ -533,7 +565,7 @@ pub fn simulate(
             qd: plant.qd(),
             tau: controller.tau(),
             tau_nom: controller.tau_nom(),
-            b: controller.barriers(),
+            b: barriers,
             extra: &[],
         })?;
         if k == ticks {

@@ -1,0 +1,428 @@
+//! The `softcbf verify` command: a batch (or one shard of it), `verify merge` of shard
+//! directories, and `verify replay` of one run with the figures `softcbf simulate` draws.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+use clap::{Args, Subcommand};
+
+use crate::cli::{check_number, load_robot};
+use crate::exit;
+use crate::hardware::cli::output_directory;
+use crate::model::Model;
+use crate::output::{Console, one_line, write_outputs};
+use crate::scenario::ScenarioFile;
+use crate::sim::simulate;
+use crate::verify::draw::draw;
+use crate::verify::report::{report, report_json};
+use crate::verify::spec::{RUNS, SEED, VerifyOverrides, VerifySpec};
+use crate::verify::table::{self, Batch, Manifest, read, runs_csv, shard_range, timing_csv, write};
+use crate::verify::{RunRow, figures, run_batch};
+
+/// Options of `softcbf verify`.
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct VerifyArgs {
+    #[command(subcommand)]
+    command: Option<VerifyCommand>,
+    #[command(flatten)]
+    batch: BatchArgs,
+}
+
+#[derive(Subcommand)]
+enum VerifyCommand {
+    /// Merge shard directories into the runs.csv, report.json and figures one process
+    /// would have written.
+    Merge(MergeArgs),
+    /// Run one run of a batch again alone, with the figures and 3-D view of `simulate`.
+    Replay(ReplayArgs),
+}
+
+/// The batch: which scenario, how many runs, which slice.
+#[derive(Args)]
+struct BatchArgs {
+    /// Scenario file with a `[verify]` table (scenarios/README.md).
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Runs in the batch (default: the table's `runs`).
+    #[arg(long)]
+    runs: Option<i64>,
+    /// The batch's seed (default: the table's `seed`).
+    #[arg(long)]
+    seed: Option<i64>,
+    /// Run only the K-th (from 0) of M disjoint slices of the batch, e.g. `--shard 3/100`;
+    /// `softcbf verify merge` joins the slices' directories.
+    #[arg(long, value_name = "K/M")]
+    shard: Option<String>,
+    /// Worker threads (default: one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Simulated time of each run (s), replacing the scenario's.
+    #[arg(long, allow_negative_numbers = true)]
+    duration: Option<f64>,
+    /// Output directory.
+    #[arg(long, default_value = "verify")]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// The shards' output directories.
+    #[arg(required = true, value_name = "DIR")]
+    dirs: Vec<PathBuf>,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+struct ReplayArgs {
+    /// The batch's scenario file.
+    #[arg(long)]
+    scenario: PathBuf,
+    /// The batch's seed (default: the table's `seed`).
+    #[arg(long)]
+    seed: Option<i64>,
+    /// The run's index in the batch.
+    #[arg(long)]
+    run: usize,
+    /// The batch's `--duration`, if it gave one (s).
+    #[arg(long, allow_negative_numbers = true)]
+    duration: Option<f64>,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write an animation of the run, `robot.gif`.
+    #[arg(long)]
+    animate: bool,
+}
+
+/// Runs `softcbf verify`; returns the exit status.
+pub fn verify(args: VerifyArgs, console: &mut Console) -> Result<u8, String> {
+    match args.command {
+        Some(VerifyCommand::Merge(merge)) => merge_command(merge, console),
+        Some(VerifyCommand::Replay(replay)) => replay_command(replay, console),
+        None => batch_command(args.batch, console),
+    }
+}
+
+/// The model and checked spec of a scenario file, with the command line's overrides.
+fn load(
+    path: &Path,
+    runs: Option<i64>,
+    seed: Option<i64>,
+    duration: Option<f64>,
+) -> Result<(Model, VerifySpec), String> {
+    let runs = runs
+        .map(|n| RUNS.check_integer(n).map_err(|m| format!("--runs: {m}")))
+        .transpose()?;
+    let seed = seed
+        .map(|n| SEED.check_integer(n).map_err(|m| format!("--seed: {m}")))
+        .transpose()?;
+    let duration = duration
+        .map(|d| check_number("--duration", d, &softcbf_description::limits::DURATION_S))
+        .transpose()?;
+    let file = ScenarioFile::load(path).map_err(|e| e.to_string())?;
+    let robot = file
+        .load_robot()
+        .and_then(|robot| robot.map_or_else(|| load_robot(None), Ok))
+        .map_err(|e| e.to_string())?;
+    let robot_text = std::fs::read_to_string(&robot.source)
+        .unwrap_or_else(|_| crate::cli::PAPER_SIM_ROBOT.to_string());
+    let model = Model::new(robot).map_err(|e| e.to_string())?;
+    let overrides = VerifyOverrides {
+        runs: runs.map(|n| n as usize),
+        seed: seed.map(|n| n as u64),
+        duration,
+    };
+    let spec =
+        VerifySpec::from_file(&file, &model, &overrides, &robot_text).map_err(|e| e.to_string())?;
+    Ok((model, spec))
+}
+
+/// `K/M` with `0 ≤ K < M`.
+fn parse_shard(text: &str) -> Result<(usize, usize), String> {
+    let bad = || {
+        format!(
+            "--shard: expected K/M with 0 ≤ K < M (the K-th of M slices, from 0, e.g. \
+             `--shard 0/4`), got `{text}`"
+        )
+    };
+    let (k, m) = text.split_once('/').ok_or_else(bad)?;
+    let k: usize = k.trim().parse().map_err(|_| bad())?;
+    let m: usize = m.trim().parse().map_err(|_| bad())?;
+    if m == 0 || k >= m {
+        return Err(bad());
+    }
+    Ok((k, m))
+}
+
+/// The batch's identity as shard manifests and the report record it.
+fn batch_of(spec: &VerifySpec, model: &Model, duration: Option<f64>) -> Batch {
+    Batch {
+        scenario: spec.file.clone(),
+        fingerprint: spec.fingerprint.clone(),
+        seed: spec.seed,
+        runs: spec.runs,
+        duration,
+        threshold: spec.threshold,
+        groups: spec.groups.iter().map(|g| g.name()).collect(),
+        coordinates: model.nq(),
+    }
+}
+
+/// Progress on standard error: a bar on a terminal, a line every tenth otherwise.
+struct BatchProgress {
+    start: Instant,
+    terminal: bool,
+    shown: Mutex<usize>,
+}
+
+impl BatchProgress {
+    fn new() -> BatchProgress {
+        BatchProgress {
+            start: Instant::now(),
+            terminal: std::io::stderr().is_terminal(),
+            shown: Mutex::new(0),
+        }
+    }
+
+    fn update(&self, done: usize, total: usize) {
+        let Ok(mut shown) = self.shown.lock() else {
+            return;
+        };
+        let steps = if self.terminal { 200 } else { 10 };
+        let step = done * steps / total.max(1);
+        if step <= *shown && done != total {
+            return;
+        }
+        *shown = step;
+        let elapsed = self.start.elapsed().as_secs_f64();
+        let left = elapsed / done.max(1) as f64 * (total - done) as f64;
+        let width = 30;
+        let filled = done * width / total.max(1);
+        let bar: String = (0..width)
+            .map(|k| if k < filled { '#' } else { '.' })
+            .collect();
+        let text =
+            format!("verify [{bar}] {done}/{total} runs, {elapsed:.0} s, about {left:.0} s left");
+        let mut stderr = std::io::stderr().lock();
+        if self.terminal {
+            let _ = write!(stderr, "\r{text}");
+            if done == total {
+                let _ = writeln!(stderr);
+            }
+        } else {
+            let _ = writeln!(stderr, "{text}");
+        }
+        let _ = stderr.flush();
+    }
+}
+
+fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
+    let Some(path) = &args.scenario else {
+        return Err(
+            "--scenario: give the scenario file whose [verify] table declares the ranges \
+             (e.g. --scenario scenarios/verify-paper.toml)"
+                .into(),
+        );
+    };
+    let (shard, slices) = args.shard.as_deref().map_or(Ok((0, 1)), parse_shard)?;
+    let (model, spec) = load(path, args.runs, args.seed, args.duration)?;
+    output_directory(&args.out, "--out")?;
+    let range = shard_range(spec.runs, shard, slices);
+    let groups: Vec<String> = spec.groups.iter().map(|g| g.name()).collect();
+    console.say(&format!(
+        "verify {}: {} of {} runs (shard {shard}/{slices}), seed {}, groups: {}",
+        spec.file,
+        range.len(),
+        spec.runs,
+        spec.seed,
+        groups.join(", ")
+    ));
+    let progress = BatchProgress::new();
+    let start = Instant::now();
+    let finished = run_batch(
+        &model,
+        &spec,
+        range.clone(),
+        args.threads,
+        &|done, total| progress.update(done, total),
+    )
+    .map_err(|e| e.to_string())?;
+    let wall = start.elapsed().as_secs_f64();
+    let timing: Vec<(usize, f64)> = finished.iter().map(|f| (f.row.run, f.wall_time)).collect();
+    let rows: Vec<RunRow> = finished.into_iter().map(|f| f.row).collect();
+
+    let batch = batch_of(&spec, &model, args.duration);
+    let out = &args.out;
+    let mut written = Vec::new();
+    let mut put = |name: &str, text: &str| -> Result<(), String> {
+        let path = out.join(name);
+        write(&path, text).map_err(|e| e.to_string())?;
+        written.push(path.display().to_string());
+        Ok(())
+    };
+    put("runs.csv", &runs_csv(&rows, model.nq()))?;
+    put("timing.csv", &timing_csv(&timing))?;
+    let manifest = Manifest {
+        batch: batch.clone(),
+        shard: [shard, slices],
+        first: range.start,
+        end: range.end,
+        software: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    put(
+        "shard.json",
+        &serde_json::to_string_pretty(&manifest).map_err(|e| e.to_string())?,
+    )?;
+    let code = if slices == 1 {
+        let code = summarize(out, &batch, &rows, console, &mut written)?;
+        console.say(&format!("wrote {}", written.join(", ")));
+        code
+    } else {
+        console.say(&format!(
+            "wrote {}; join the shards with `softcbf verify merge DIR… --out DIR`",
+            written.join(", ")
+        ));
+        exit::OK
+    };
+    let per_run: Vec<f64> = timing.iter().map(|t| t.1).collect();
+    let sum: f64 = per_run.iter().sum();
+    console.say(&format!(
+        "{} runs in {wall:.1} s wall ({:.1} ms per run on one core, {} threads)",
+        rows.len(),
+        1e3 * sum / rows.len().max(1) as f64,
+        rayon_threads(args.threads)
+    ));
+    if let Some(error) = console.error() {
+        return Err(error.to_string());
+    }
+    Ok(code)
+}
+
+fn rayon_threads(threads: usize) -> usize {
+    if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    }
+}
+
+/// Writes report.json and the figures of a whole batch into `out`, prints one line per
+/// group, and returns the exit status: unsafe (3) if any run went below the threshold.
+fn summarize(
+    out: &Path,
+    batch: &Batch,
+    rows: &[RunRow],
+    console: &mut Console,
+    written: &mut Vec<String>,
+) -> Result<u8, String> {
+    let report = report(batch, rows);
+    let path = out.join("report.json");
+    write(&path, &report_json(&report)).map_err(|e| e.to_string())?;
+    written.push(path.display().to_string());
+    let figures = figures::write_figures(out, rows, &batch.groups, batch.threshold)
+        .map_err(|e| e.to_string())?;
+    written.extend(figures.iter().map(|p| p.display().to_string()));
+    for group in &report.groups {
+        let lowest = group.lowest_barrier.as_ref().map_or(f64::NAN, |q| q.min);
+        console.say(&format!(
+            "{}: {} of {} runs unsafe ({:.2} %; below {:e}, invalid state or stopped; {} \
+             with the set point inside the safe set), lowest {lowest:.3e}, {} with an \
+             invalid state, {} relaxed, {} failed QP, {} stopped",
+            group.name,
+            group.unsafe_runs,
+            group.runs,
+            100.0 * group.unsafe_fraction,
+            batch.threshold,
+            group.unsafe_with_set_point_inside,
+            group.with_invalid_state,
+            group.with_relaxed,
+            group.with_failed_qp,
+            group.stopped,
+        ));
+    }
+    if let Some(first) = report
+        .worst
+        .iter()
+        .min_by(|a, b| a.lowest_barrier.total_cmp(&b.lowest_barrier))
+    {
+        console.say(&format!("worst run: {}", first.replay));
+    }
+    let code = if report.all.unsafe_runs > 0 {
+        exit::UNSAFE
+    } else {
+        exit::OK
+    };
+    Ok(code)
+}
+
+fn merge_command(args: MergeArgs, console: &mut Console) -> Result<u8, String> {
+    output_directory(&args.out, "--out")?;
+    let (batch, rows) = table::merge(&args.dirs).map_err(|e| e.to_string())?;
+    let mut written = Vec::new();
+    let path = args.out.join("runs.csv");
+    write(&path, &runs_csv(&rows, batch.coordinates)).map_err(|e| e.to_string())?;
+    written.push(path.display().to_string());
+    let manifest = Manifest {
+        batch: batch.clone(),
+        shard: [0, 1],
+        first: 0,
+        end: batch.runs,
+        software: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    let path = args.out.join("shard.json");
+    write(
+        &path,
+        &serde_json::to_string_pretty(&manifest).map_err(|e| e.to_string())?,
+    )
+    .map_err(|e| e.to_string())?;
+    written.push(path.display().to_string());
+    let mut timing = String::from("run,wall_time [s]\n");
+    for dir in &args.dirs {
+        if let Ok(text) = read(&dir.join("timing.csv")) {
+            timing.extend(text.lines().skip(1).map(|l| format!("{l}\n")));
+        }
+    }
+    let path = args.out.join("timing.csv");
+    write(&path, &timing).map_err(|e| e.to_string())?;
+    written.push(path.display().to_string());
+    let code = summarize(&args.out, &batch, &rows, console, &mut written)?;
+    console.say(&format!("wrote {}", written.join(", ")));
+    if let Some(error) = console.error() {
+        return Err(error.to_string());
+    }
+    Ok(code)
+}
+
+fn replay_command(args: ReplayArgs, console: &mut Console) -> Result<u8, String> {
+    let (model, spec) = load(&args.scenario, None, args.seed, args.duration)?;
+    output_directory(&args.out, "--out")?;
+    let drawn = draw(&model, &spec, args.run)?;
+    let scenario = spec.scenario_for(&model, &drawn)?;
+    let group = &spec.groups[drawn.group];
+    console.say(&format!(
+        "run {} of seed {} ({}): set point {:?}",
+        args.run,
+        spec.seed,
+        group.name(),
+        drawn.set_point
+    ));
+    let mut progress = crate::output::Progress::new("replay");
+    let run = simulate(&model, &scenario, true, &mut |f| progress.update(f))
+        .map_err(|e| e.to_string())?;
+    let written =
+        write_outputs(&args.out, &run, None, &model, args.animate).map_err(|e| e.to_string())?;
+    console.say(&one_line(&run.summary));
+    let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+    console.say(&format!("wrote {}", names.join(", ")));
+    let unsafe_run =
+        run.summary.min_barrier.value < spec.threshold || run.summary.stopped.is_some();
+    if let Some(error) = console.error() {
+        return Err(error.to_string());
+    }
+    Ok(if unsafe_run { exit::UNSAFE } else { exit::OK })
+}
