@@ -1,23 +1,27 @@
 //! The simulated robot: the generated dynamics as a first-order system with the generalized
-//! force held constant (zero-order hold), advanced by the Rosenbrock-W integrator.
+//! force held constant (zero-order hold), advanced by the exponential integrator.
 //!
-//! The state is `x = (q, q̇)`. The integrator's `W = I − γh J̃` uses the mechanical
-//! approximation `J̃ = [[0, I], [−M⁻¹K, −M⁻¹D]]` with `M` evaluated at each step's start: the
-//! stiff part of this plant is exactly its linear `K`, `D` (docs/model.md §7), and Coriolis,
-//! gravity and `∂M/∂q` terms, which `J̃` omits, are not stiff (measurements in
-//! [`crate::integrator`]'s module docs). Nothing allocates after [`Plant::new`].
+//! The state is `x = (q, q̇)`. The integrator ([`crate::integrator::Exponential`]) treats the
+//! linear part `A = [[0, I], [−M⁻¹K, −M⁻¹D]]` exactly, with `M` frozen where `A` was built
+//! and rebuilt when `M` has drifted ([`LinearPart::drift`] is `‖M_A⁻¹(M(x) − M_A)‖∞`): the
+//! stiff part of this plant is exactly its linear `K`, `D` (docs/model.md §7), and
+//! Coriolis, gravity and the change of `M`, left to the explicit part, are not stiff
+//! (measurements in [`crate::integrator`]'s module docs). [`PlantSystem`] also provides the
+//! mechanical `W` of the Rosenbrock-W method, which the controller's predictions use.
+//! Nothing allocates after [`Plant::new`].
 //!
 //! On the paper's scenario (10 s at 1 kHz, filter on) the default `rtol = 1e-6`,
-//! `atol = 1e-9` take 3.3 steps and 13.2 evaluations of the dynamics per tick, and the
-//! first 3 s stay within 1.4e-7 m of a run at `rtol = 1e-10` (1e-5: 4.0e-7 m with half the
-//! evaluations; 1e-4: 6e-6 m; 1e-3: 6.5e-5 m).
+//! `atol = 1e-9` take 1.09 steps and 3.4 evaluations of the dynamics per tick, rebuild `A`
+//! at one tick in 20, and stay within 1.4e-7 m of a run at `rtol = 1e-10` over the whole
+//! 10 s (the test `closed_loop_agrees_with_a_tight_tolerance_run`).
 
 use crate::dynamics::{
     DynamicsError, DynamicsWorkspace, forward_dynamics, mass_matrix, update_joints,
 };
 use crate::integrator::{
-    IntegratorError, MechanicalW, OdeSystem, Rosenbrock, Stats, Tolerances, WSolve,
+    Exponential, IntegratorError, LinearPart, MechanicalW, OdeSystem, Stats, Tolerances, WSolve,
 };
+use crate::linalg::{cholesky_in_place, cholesky_inverse};
 use crate::model::Model;
 
 /// The workspace of the plant's equations for one model: the held `τ` and what the
@@ -30,6 +34,11 @@ pub struct PlantWorkspace {
     last_error: Option<DynamicsError>,
     /// The state at which `dynamics` holds `M` (the last successful right-hand side).
     evaluated_at: Vec<f64>,
+    /// `M⁻¹` at the state of the last linear part, and scratch (`nq × nq` each).
+    reference_inverse: Vec<f64>,
+    reference_mass: Vec<f64>,
+    scratch: Vec<f64>,
+    scratch2: Vec<f64>,
 }
 
 impl PlantWorkspace {
@@ -48,6 +57,10 @@ impl PlantWorkspace {
             w,
             last_error: None,
             evaluated_at: vec![f64::NAN; 2 * nq],
+            reference_inverse: vec![0.0; nq * nq],
+            reference_mass: vec![0.0; nq * nq],
+            scratch: vec![0.0; nq * nq],
+            scratch2: vec![0.0; nq * nq],
         }
     }
 
@@ -121,11 +134,79 @@ impl WSolve for PlantSystem<'_> {
     }
 }
 
+impl PlantSystem<'_> {
+    /// Makes `ws.dynamics.mass_matrix` hold `M` at `x`.
+    fn mass_matrix_at(&mut self, x: &[f64]) -> bool {
+        let ws = &mut *self.workspace;
+        if ws.evaluated_at != x {
+            let nq = self.model.nq();
+            let (q, qd) = x.split_at(nq);
+            let evaluated = update_joints(self.model, &mut ws.dynamics, q, qd)
+                .and_then(|()| mass_matrix(self.model, &mut ws.dynamics));
+            if evaluated.is_err() {
+                return false;
+            }
+            ws.evaluated_at.fill(f64::NAN);
+        }
+        true
+    }
+}
+
+impl LinearPart for PlantSystem<'_> {
+    fn linear_part(&mut self, _t: f64, x: &[f64], a: &mut [f64]) -> bool {
+        if !self.mass_matrix_at(x) {
+            return false;
+        }
+        let nq = self.model.nq();
+        let ws = &mut *self.workspace;
+        ws.reference_mass.copy_from_slice(&ws.dynamics.mass_matrix);
+        ws.scratch.copy_from_slice(&ws.dynamics.mass_matrix);
+        if !cholesky_in_place(&mut ws.scratch, nq) {
+            return false;
+        }
+        cholesky_inverse(&ws.scratch, nq, &mut ws.reference_inverse, &mut ws.scratch2);
+        let m = 2 * nq;
+        a.fill(0.0);
+        for i in 0..nq {
+            a[i * m + nq + i] = 1.0;
+            for j in 0..nq {
+                let inv = ws.reference_inverse[i * nq + j];
+                a[(nq + i) * m + j] = -inv * self.model.stiffness[j];
+                a[(nq + i) * m + nq + j] = -inv * self.model.damping[j];
+            }
+        }
+        true
+    }
+
+    fn drift(&mut self, x: &[f64]) -> f64 {
+        if !self.mass_matrix_at(x) {
+            return f64::INFINITY;
+        }
+        // ‖M_ref⁻¹ (M(x) − M_ref)‖∞: the relative error of the frozen M⁻¹ on the stiff forces.
+        let nq = self.model.nq();
+        let ws = &mut *self.workspace;
+        let mut worst = 0.0_f64;
+        for i in 0..nq {
+            let row = &ws.reference_inverse[i * nq..(i + 1) * nq];
+            let mut sum = 0.0;
+            for j in 0..nq {
+                let mut s = 0.0;
+                for (k, r) in row.iter().enumerate() {
+                    s += r * (ws.dynamics.mass_matrix[k * nq + j] - ws.reference_mass[k * nq + j]);
+                }
+                sum += s.abs();
+            }
+            worst = worst.max(sum);
+        }
+        worst
+    }
+}
+
 /// The simulated robot: its state, time and integrator.
 pub struct Plant<'m> {
     model: &'m Model,
     system: PlantWorkspace,
-    integrator: Rosenbrock,
+    integrator: Exponential,
     state: Vec<f64>,
     time: f64,
     stats: Stats,
@@ -138,7 +219,7 @@ impl<'m> Plant<'m> {
         Ok(Plant {
             model,
             system: PlantWorkspace::new(model),
-            integrator: Rosenbrock::new(2 * nq, tolerances)?,
+            integrator: Exponential::new(2 * nq, tolerances)?,
             state: vec![0.0; 2 * nq],
             time: 0.0,
             stats: Stats::default(),

@@ -1432,8 +1432,13 @@ mod tests {
                 let (left, lowest) = elongation_barriers(&model, &q);
                 assert!(lowest > 0.0, "set {k}: {lowest}");
                 for i in 0..2 {
+                    // The set of the largest extra tension takes the softer robot's straight
+                    // module exactly half way, by construction of the defaults (linear
+                    // statics, which its axial equilibrium obeys): equal up to rounding, so
+                    // 1e-12 m of slack, far below the integration's accuracy and anything
+                    // physical, keeps the check from testing the last bit.
                     assert!(
-                        left[i] >= 0.5 * room[i],
+                        left[i] >= 0.5 * room[i] - 1e-12,
                         "{}: set {k} leaves module {} {} of {} m",
                         model.robot.name,
                         i + 1,
