@@ -283,17 +283,18 @@ struct GroupCount {
 }
 
 impl GroupCount {
-    /// Legend text: `name: below / runs below −1e-6 m[, k not finite (not drawn)]`.
+    /// Legend text: `name: unsafe / runs below −1e-6 m[, k off the axis]` (unsafe: below
+    /// the threshold, an invalid state or stopped early).
     fn text(&self, threshold: &str) -> String {
         let mut text = format!(
-            "{}: {} / {} below {threshold} or invalid",
+            "{}: {} / {} unsafe (< {threshold})",
             self.name, self.below, self.runs
         );
         if self.runs == 0 {
             text.push_str(" (no runs)");
         }
         if self.non_finite > 0 {
-            text.push_str(&format!(", {} not drawn (not finite)", self.non_finite));
+            text.push_str(&format!(", {} invalid, not drawn", self.non_finite));
         }
         text
     }
@@ -1098,9 +1099,9 @@ mod tests {
         assert_eq!(
             texts,
             [
-                "a: 1 / 2 below −1e-6 m or invalid",
-                "b: 2 / 2 below −1e-6 m or invalid, 1 not drawn (not finite)",
-                "c: 0 / 0 below −1e-6 m or invalid (no runs)",
+                "a: 1 / 2 unsafe (< −1e-6 m)",
+                "b: 2 / 2 unsafe (< −1e-6 m), 1 invalid, not drawn",
+                "c: 0 / 0 unsafe (< −1e-6 m) (no runs)",
             ]
         );
         assert_eq!(decade_label(1e-3), "0.001");
