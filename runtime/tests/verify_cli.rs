@@ -363,3 +363,97 @@ fn bad_tables_are_refused_at_the_field() {
         assert!(err.contains(fragment), "{to}: `{err}` lacks `{fragment}`");
     }
 }
+
+#[test]
+fn parameter_errors_noise_and_initial_states_are_drawn_and_replayed() {
+    let dir = temp_dir("uncertain");
+    let robot = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/paper-sim-uncertain.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/verify-paper.toml");
+    let scenario = std::fs::read_to_string(path)
+        .unwrap()
+        .replace(
+            "# robot = \"../robots/paper-sim.toml\"",
+            &format!("robot = \"{}\"", robot.display()),
+        )
+        .replace("duration = 3.0", "duration = 0.1")
+        + "parameter_errors = true\nsensor_noise_q = 1e-5\nsensor_noise_qd = 1e-3\n\
+           initial_q_min = [-0.01, -0.01, -0.01, -0.01, -0.01, -0.01]\n\
+           initial_q_max = [0.01, 0.01, 0.0, 0.01, 0.01, 0.0]\n";
+    assert!(scenario.contains("robot = \"/"));
+    let file = dir.join("uncertain.toml");
+    std::fs::write(&file, scenario).unwrap();
+    let file = file.to_str().unwrap();
+    let out = dir.join("batch");
+    verify(&[
+        "--scenario",
+        file,
+        "--runs",
+        "8",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let runs = text(&read(&out.join("runs.csv")));
+    let header: Vec<&str> = runs.lines().next().unwrap().split(',').collect();
+    let rows: Vec<Vec<&str>> = runs
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 8);
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    // The robot file declares ±20 % on stiffness, damping and mass: every factor lies
+    // inside, and they differ from run to run.
+    let mut factors = Vec::new();
+    for row in &rows {
+        for module in 1..=2 {
+            for what in [
+                "bend stiffness",
+                "axial stiffness",
+                "bend damping",
+                "axial damping",
+                "mass",
+            ] {
+                let f: f64 = row[column(&format!("module {module} {what} factor"))]
+                    .parse()
+                    .unwrap();
+                assert!((0.8..=1.2).contains(&f), "{what} factor {f}");
+                factors.push(f);
+            }
+        }
+        let q: f64 = row[column("initial dx1 [m]")].parse().unwrap();
+        assert!((-0.01..=0.01).contains(&q) && q != 0.0, "initial dx1 {q}");
+    }
+    factors.sort_by(f64::total_cmp);
+    factors.dedup();
+    assert_eq!(factors.len(), 80, "every factor drawn anew");
+    // A run with noise replays to the bit (the noise is seeded by the run).
+    let replay = dir.join("replay");
+    let o = softcbf(&[
+        "verify",
+        "replay",
+        "--scenario",
+        file,
+        "--run",
+        "3",
+        "--out",
+        replay.to_str().unwrap(),
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 3)),
+        "{}",
+        text(&o.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&read(&replay.join("summary.json"))).unwrap();
+    let expected: f64 = rows[3][column("lowest_barrier [m]")].parse().unwrap();
+    let lowest = summary["min_barrier"]["value"].as_f64().unwrap();
+    assert_eq!(
+        lowest.to_bits(),
+        expected.to_bits(),
+        "replayed {lowest}, batch {expected}"
+    );
+    assert!(
+        summary["settings"]["plant"].is_object(),
+        "the replay's plant is the drawn robot"
+    );
+}
