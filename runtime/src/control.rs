@@ -344,6 +344,10 @@ pub struct Controller {
     nq: usize,
     nb: usize,
     dynamics: DynamicsWorkspace,
+    /// The state `(q, q̇)` at which `dynamics` holds `M`, its factor and `h + G`, if the
+    /// last tick evaluated them.
+    dynamics_state: Vec<f64>,
+    dynamics_valid: bool,
     barrier_terms: BarrierTerms,
     /// HOCBF rows `A = J M⁻¹`, row-major `nb × nq`, then the input limits; and right-hand
     /// sides.
@@ -777,6 +781,8 @@ impl Controller {
             nq,
             nb,
             dynamics: DynamicsWorkspace::new(model),
+            dynamics_state: vec![f64::NAN; 2 * nq],
+            dynamics_valid: false,
             barrier_terms: BarrierTerms::new(model),
             rows: constraint_rows,
             rhs: constraint_rhs,
@@ -889,6 +895,13 @@ impl Controller {
         &self.dynamics
     }
 
+    /// The state `(q, q̇)` (`2 nq` entries) at which [`Controller::dynamics`] holds `M`, its
+    /// Cholesky factor and `h + G`, all evaluated by the last tick; `None` if that tick did
+    /// not evaluate them (an invalid state, or a failed evaluation).
+    pub fn dynamics_state(&self) -> Option<&[f64]> {
+        self.dynamics_valid.then_some(&self.dynamics_state[..])
+    }
+
     fn fallback(&mut self, why: InvalidState) -> TickStatus {
         self.tau.fill(0.0);
         self.tau_nom.fill(f64::NAN);
@@ -991,6 +1004,7 @@ pub fn tick_nominal(
     qd: &[f64],
     nominal: Nominal<'_>,
 ) -> TickStatus {
+    controller.dynamics_valid = false;
     if let Some(why) = size_problem(model, controller, q, qd, &nominal) {
         return controller.fallback(why);
     }
@@ -1029,6 +1043,10 @@ pub fn tick_nominal(
             },
         });
     }
+    let (state_q, state_qd) = controller.dynamics_state.split_at_mut(nq);
+    state_q.copy_from_slice(q);
+    state_qd.copy_from_slice(qd);
+    controller.dynamics_valid = true;
     let barriers = &controller.barrier_terms;
 
     // τ_nom, and n = h + G + K q + D q̇.

@@ -572,6 +572,12 @@ pub fn simulate(
             break;
         }
         plant.tau_mut().copy_from_slice(controller.tau());
+        // The controller evaluated the model at the plant's state (no noise, the plant's
+        // model is the controller's): the plant takes that evaluation (it checks both)
+        // instead of repeating it at the start of its first step.
+        if let Some(state) = controller.dynamics_state() {
+            plant.use_evaluation(model, state, controller.dynamics());
+        }
         let tick_time = t;
         // One piece per recorded instant, the last ending at the next tick (without rows
         // between ticks: one piece of a whole period). The integrator lands a step on each

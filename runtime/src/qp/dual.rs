@@ -207,7 +207,7 @@ impl DualActiveSet {
             if bb == 0.0 {
                 continue;
             }
-            let h = a.hypot(bb);
+            let h = givens_norm(a, bb);
             let (c, s) = (a / h, bb / h);
             self.d[j - 1] = h;
             self.d[j] = 0.0;
@@ -232,7 +232,7 @@ impl DualActiveSet {
         }
         for j in k..nq - 1 {
             let (a, bb) = (self.r[j * ld + j], self.r[j * ld + j + 1]);
-            let h = a.hypot(bb);
+            let h = givens_norm(a, bb);
             if h == 0.0 {
                 continue;
             }
@@ -280,6 +280,19 @@ impl DualActiveSet {
             }
             self.u[j] = acc / self.r[j * ld + j];
         }
+    }
+}
+
+/// `√(a² + b²)` for a Givens rotation: the plain formula (the entries here are those of
+/// unit-norm rows and an orthogonal `Q`, far from overflow), [`f64::hypot`] (several
+/// times dearer) only when the squares underflow.
+#[inline]
+fn givens_norm(a: f64, b: f64) -> f64 {
+    let h = (a * a + b * b).sqrt();
+    if h.is_normal() && h > 1e-150 {
+        h
+    } else {
+        a.hypot(b)
     }
 }
 
