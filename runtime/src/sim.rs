@@ -268,7 +268,7 @@ pub fn barriers_per_module(table: &[BarrierInfo], modules: usize) -> Vec<usize> 
 }
 
 /// Counts of the controller's outcomes over a run.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct TickCounts {
     /// Ticks run.
     pub ticks: usize,

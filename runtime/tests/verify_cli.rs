@@ -3,17 +3,12 @@
 //! `report.json` byte for byte; a replayed run reproduces its row; bad shards and bad
 //! tables are refused naming what is wrong.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const BIN: &str = env!("CARGO_BIN_EXE_softcbf");
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("softcbf-verify-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use common::{BIN, temp_dir};
 
 fn softcbf(args: &[&str]) -> Output {
     Command::new(BIN).args(args).output().unwrap()
@@ -52,6 +47,43 @@ fn verify(args: &[&str]) -> Output {
         text(&out.stderr)
     );
     out
+}
+
+/// Replays run `run` of the batch of `scenario` (default seed) into `out`, checks that its
+/// lowest barrier is the one in the batch's `runs` (the text of runs.csv) bit for bit, and
+/// returns its summary.json.
+fn replayed(scenario: &str, runs: &str, run: usize, out: &Path) -> serde_json::Value {
+    let o = softcbf(&[
+        "verify",
+        "replay",
+        "--scenario",
+        scenario,
+        "--run",
+        &run.to_string(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 3)),
+        "{}",
+        text(&o.stderr)
+    );
+    let header: Vec<&str> = runs.lines().next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|h| *h == "lowest_barrier [m]")
+        .unwrap();
+    let row: Vec<&str> = runs.lines().nth(run + 1).unwrap().split(',').collect();
+    let expected: f64 = row[column].parse().unwrap();
+    let summary: serde_json::Value =
+        serde_json::from_slice(&read(&out.join("summary.json"))).unwrap();
+    let lowest = summary["min_barrier"]["value"].as_f64().unwrap();
+    assert_eq!(
+        lowest.to_bits(),
+        expected.to_bits(),
+        "run {run}: replayed {lowest}, batch {expected}"
+    );
+    summary
 }
 
 #[test]
@@ -148,34 +180,8 @@ fn shards_merged_and_thread_counts_give_the_same_files() {
     assert_eq!(sizes, vec![7, 7, 8]);
 
     // A run replayed alone gives its row's lowest barrier, bit for bit.
-    let row: Vec<&str> = runs.lines().nth(6).unwrap().split(',').collect();
-    let header: Vec<&str> = runs.lines().next().unwrap().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let replay = dir.join("replay");
-    let out = softcbf(&[
-        "verify",
-        "replay",
-        "--scenario",
-        scenario,
-        "--run",
-        "5",
-        "--out",
-        replay.to_str().unwrap(),
-    ]);
-    assert!(
-        matches!(out.status.code(), Some(0 | 3)),
-        "{}",
-        text(&out.stderr)
-    );
-    let summary: serde_json::Value =
-        serde_json::from_slice(&read(&replay.join("summary.json"))).unwrap();
-    let lowest = summary["min_barrier"]["value"].as_f64().unwrap();
-    let expected: f64 = row[column("lowest_barrier [m]")].parse().unwrap();
-    assert_eq!(
-        lowest.to_bits(),
-        expected.to_bits(),
-        "replayed {lowest}, batch {expected}"
-    );
+    replayed(scenario, &runs, 5, &replay);
     assert!(replay.join("figure.png").exists() && replay.join("robot.png").exists());
     // The report names that command for its worst runs.
     let report: serde_json::Value =
@@ -427,31 +433,7 @@ fn parameter_errors_noise_and_initial_states_are_drawn_and_replayed() {
     factors.dedup();
     assert_eq!(factors.len(), 80, "every factor drawn anew");
     // A run with noise replays to the bit (the noise is seeded by the run).
-    let replay = dir.join("replay");
-    let o = softcbf(&[
-        "verify",
-        "replay",
-        "--scenario",
-        file,
-        "--run",
-        "3",
-        "--out",
-        replay.to_str().unwrap(),
-    ]);
-    assert!(
-        matches!(o.status.code(), Some(0 | 3)),
-        "{}",
-        text(&o.stderr)
-    );
-    let summary: serde_json::Value =
-        serde_json::from_slice(&read(&replay.join("summary.json"))).unwrap();
-    let expected: f64 = rows[3][column("lowest_barrier [m]")].parse().unwrap();
-    let lowest = summary["min_barrier"]["value"].as_f64().unwrap();
-    assert_eq!(
-        lowest.to_bits(),
-        expected.to_bits(),
-        "replayed {lowest}, batch {expected}"
-    );
+    let summary = replayed(file, &runs, 3, &dir.join("replay"));
     assert!(
         summary["settings"]["plant"].is_object(),
         "the replay's plant is the drawn robot"

@@ -3,6 +3,7 @@
 
 use softcbf::integrator::{
     IntegratorError, OdeSystem, Stats, Tolerances, WSolve, check_call, error_norm,
+    shrink_after_rejection,
 };
 use softcbf::linalg::{lu_in_place, lu_solve};
 
@@ -169,19 +170,7 @@ impl DormandPrince {
             } else {
                 stats.rejected += 1;
                 last_rejected = true;
-                let fac = if en.is_finite() {
-                    (SAFETY * en.powf(-0.2)).clamp(FAC_MIN, 0.9)
-                } else {
-                    0.25
-                };
-                self.h = h * fac;
-                if self.h < tol.h_min {
-                    return Err(if en.is_finite() {
-                        IntegratorError::StepTooSmall { t, h: self.h }
-                    } else {
-                        IntegratorError::NonFinite { t }
-                    });
-                }
+                self.h = shrink_after_rejection(h, en, 5.0, FAC_MIN, &tol, t)?;
             }
         }
         Ok(stats)

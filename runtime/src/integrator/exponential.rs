@@ -3,7 +3,9 @@
 //! the integrator rebuilds only when it has drifted; see the module docs of
 //! [`crate::integrator`] for why and what it costs.
 
-use super::{IntegratorError, OdeSystem, Stats, Tolerances, check_call, error_norm};
+use super::{
+    IntegratorError, OdeSystem, Stats, Tolerances, check_call, error_norm, shrink_after_rejection,
+};
 
 /// What the exponential integrator needs besides `f`: a linear part `A ≈ ∂f/∂x` holding the
 /// stiff dynamics, treated exactly (the rest, `N(x) = f(x) − A x`, explicitly).
@@ -599,19 +601,7 @@ impl Exponential {
                     fresh = true;
                     continue;
                 }
-                let fac = if en.is_finite() {
-                    (0.9 * en.powf(-1.0 / 3.0)).clamp(0.1, 0.9)
-                } else {
-                    0.25
-                };
-                self.h = h * fac;
-                if self.h < tol.h_min {
-                    return Err(if en.is_finite() {
-                        IntegratorError::StepTooSmall { t, h: self.h }
-                    } else {
-                        IntegratorError::NonFinite { t }
-                    });
-                }
+                self.h = shrink_after_rejection(h, en, 3.0, 0.1, &tol, t)?;
             }
         }
         Ok(stats)

@@ -292,6 +292,35 @@ pub fn error_norm(tol: &Tolerances, x: &[f64], x_new: &[f64], err: &[f64]) -> f6
     (s / err.len().max(1) as f64).sqrt()
 }
 
+/// The step size after a rejected step of size `h` at time `t` whose scaled error was `en`
+/// ([`error_norm`]), for an error estimate that shrinks like `h^order`: `h` times
+/// `0.9 en^{−1/order}` kept within `[least, 0.9]`, or a quarter of `h` when `en` is not
+/// finite. Below `tol.h_min` it is an error: [`IntegratorError::StepTooSmall`], or
+/// [`IntegratorError::NonFinite`] when `en` is not finite.
+pub fn shrink_after_rejection(
+    h: f64,
+    en: f64,
+    order: f64,
+    least: f64,
+    tol: &Tolerances,
+    t: f64,
+) -> Result<f64, IntegratorError> {
+    let factor = if en.is_finite() {
+        (0.9 * en.powf(-1.0 / order)).clamp(least, 0.9)
+    } else {
+        0.25
+    };
+    let shrunk = h * factor;
+    if shrunk < tol.h_min {
+        return Err(if en.is_finite() {
+            IntegratorError::StepTooSmall { t, h: shrunk }
+        } else {
+            IntegratorError::NonFinite { t }
+        });
+    }
+    Ok(shrunk)
+}
+
 /// Checks an `integrate` call: the integrator's dimension `dim` against the system's and
 /// the state's, `t0` and `t1` finite, the state finite.
 pub fn check_call(

@@ -968,12 +968,12 @@ mod tests {
             lowest_t: 0.5,
             set_point_error: 1e-3,
             max_abs_tau: 1.0,
-            ticks: 1000,
-            qp_solves: 1000,
-            active: 10,
-            relaxed: 0,
-            failed: 0,
-            invalid_state: 0,
+            counts: crate::sim::TickCounts {
+                ticks: 1000,
+                qp_solves: 1000,
+                active: 10,
+                ..Default::default()
+            },
             integrator_steps: 2000,
             stopped: String::new(),
         }

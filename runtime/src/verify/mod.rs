@@ -23,7 +23,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::model::Model;
-use crate::sim::simulate;
+use crate::sim::{TickCounts, simulate};
 use crate::verify::draw::{Draw, draw};
 use crate::verify::spec::VerifySpec;
 
@@ -46,14 +46,9 @@ pub struct RunRow {
     pub set_point_error: f64,
     /// Largest `|τ_i|` applied \[N\].
     pub max_abs_tau: f64,
-    /// Ticks, QP solves, solves with active rows, relaxed solves, failed solves and ticks
-    /// with an invalid state.
-    pub ticks: usize,
-    pub qp_solves: usize,
-    pub active: usize,
-    pub relaxed: usize,
-    pub failed: usize,
-    pub invalid_state: usize,
+    /// The controller's outcomes (ticks, QP solves, active, relaxed and failed solves,
+    /// ticks with an invalid state).
+    pub counts: TickCounts,
     /// Accepted integrator steps.
     pub integrator_steps: usize,
     /// Why the run stopped early (empty: it reached its duration).
@@ -145,12 +140,7 @@ pub fn run_one(model: &Model, spec: &VerifySpec, run: usize) -> Result<Finished,
                 lowest_t: s.min_barrier.t,
                 set_point_error: s.set_point_error,
                 max_abs_tau: s.max_abs_tau,
-                ticks: s.counts.ticks,
-                qp_solves: s.counts.qp_solves,
-                active: s.counts.active,
-                relaxed: s.counts.relaxed,
-                failed: s.counts.failed,
-                invalid_state: s.counts.invalid_state,
+                counts: s.counts.clone(),
                 integrator_steps: s.integrator_steps,
                 stopped: s.stopped.clone().unwrap_or_default(),
                 draw,

@@ -115,9 +115,9 @@ fn group_report(name: String, rows: &[&RunRow], threshold: f64) -> GroupReport {
         unsafe_fraction: unsafe_runs as f64 / rows.len().max(1) as f64,
         unsafe_with_set_point_inside: count(&|r| is_unsafe(r) && r.set_point_barrier >= 0.0),
         stopped: count(&|r| !r.stopped.is_empty()),
-        with_relaxed: count(&|r| r.relaxed > 0),
-        with_failed_qp: count(&|r| r.failed > 0),
-        with_invalid_state: count(&|r| r.invalid_state > 0),
+        with_relaxed: count(&|r| r.counts.relaxed > 0),
+        with_failed_qp: count(&|r| r.counts.failed > 0),
+        with_invalid_state: count(&|r| r.counts.invalid_state > 0),
         lowest_barrier: quantiles(rows.iter().map(|r| r.lowest_barrier)),
         set_point_error: quantiles(rows.iter().map(|r| r.set_point_error)),
     }

@@ -12,6 +12,7 @@ use softcbf_description::uncertainty::ModuleFactors;
 
 use crate::control::SafetyMode;
 use crate::record::coordinate_names;
+use crate::sim::TickCounts;
 use crate::verify::RunRow;
 use crate::verify::draw::Draw;
 
@@ -172,12 +173,12 @@ pub fn runs_csv(rows: &[RunRow], coordinates: usize) -> String {
             row.lowest_t,
             row.set_point_error,
             row.max_abs_tau,
-            row.ticks,
-            row.qp_solves,
-            row.active,
-            row.relaxed,
-            row.failed,
-            row.invalid_state,
+            row.counts.ticks,
+            row.counts.qp_solves,
+            row.counts.active,
+            row.counts.relaxed,
+            row.counts.failed,
+            row.counts.invalid_state,
             row.integrator_steps,
             plain(&row.stopped),
         );
@@ -308,12 +309,14 @@ pub fn read_runs(
             lowest_t,
             set_point_error,
             max_abs_tau,
-            ticks,
-            qp_solves,
-            active,
-            relaxed,
-            failed,
-            invalid_state,
+            counts: TickCounts {
+                ticks,
+                qp_solves,
+                active,
+                relaxed,
+                failed,
+                invalid_state,
+            },
             integrator_steps,
             stopped,
         });
@@ -490,12 +493,14 @@ mod tests {
             lowest_t: 0.25,
             set_point_error: 1e-9,
             max_abs_tau: 500.4,
-            ticks: 100,
-            qp_solves: 99,
-            active: 50,
-            relaxed: 1,
-            failed: 0,
-            invalid_state: 0,
+            counts: TickCounts {
+                ticks: 100,
+                qp_solves: 99,
+                active: 50,
+                relaxed: 1,
+                failed: 0,
+                invalid_state: 0,
+            },
             integrator_steps: 300,
             stopped: String::new(),
         }
