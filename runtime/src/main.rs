@@ -6,15 +6,17 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
 
-use softcbf::cli::{check_number, load_robot, parse_coordinates, parse_velocities};
+use softcbf::cli::{
+    SimulateOptions, check_number, check_simulate_options, load_robot, parse_coordinates,
+    parse_vector, parse_velocities,
+};
 use softcbf::control::SafetyMode;
 use softcbf::exit;
 use softcbf::hardware::cli::output_directory;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
-use softcbf::scenario::{Overrides, ScenarioFile};
-use softcbf::settings::GainOptions;
+use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{settings_report, simulate};
 use softcbf_description::limits;
 
@@ -179,21 +181,6 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         args.barrier_threshold,
         &limits::BARRIER_THRESHOLD_M,
     )?;
-    let gains = GainOptions::checked(args.kp, args.kd, args.p, args.p1, args.p2)?;
-    let check = |name: &str, value: Option<f64>, limit| {
-        value.map(|v| check_number(name, v, limit)).transpose()
-    };
-    let duration = check("--duration", args.duration, &limits::DURATION_S)?;
-    let control_period = check(
-        "--control-period",
-        args.control_period,
-        &limits::CONTROL_PERIOD_S,
-    )?;
-    let record_period = check(
-        "--record-period",
-        args.record_period,
-        &limits::RECORD_PERIOD_S,
-    )?;
     let file = match &args.scenario {
         Some(path) => ScenarioFile::load(path).map_err(|e| e.to_string())?,
         None => ScenarioFile::paper_sim(),
@@ -209,19 +196,25 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     let set_point = args
         .set_point
         .as_deref()
-        .map(|text| parse_coordinates("--set-point", text, &model.robot))
+        .map(|text| parse_vector("--set-point", text, model.nq()))
         .transpose()?;
-    let overrides = Overrides {
-        gains,
+    let options = SimulateOptions {
+        kp: args.kp,
+        kd: args.kd,
+        p: args.p,
+        p1: args.p1,
+        p2: args.p2,
         set_point,
-        duration,
-        control_period,
+        duration: args.duration,
+        control_period: args.control_period,
+        record_period: args.record_period,
         filter: args.no_filter.then_some(false),
         safety: args.safety,
         compare: args.compare.then_some(true),
-        record_period,
         plant: args.plant,
     };
+    let spell = |name: &str| format!("--{}", name.replace('_', "-"));
+    let overrides = check_simulate_options(options, &model.robot, &spell)?;
     let scenario = file
         .resolve_with(&model, &overrides)
         .map_err(|e| e.to_string())?;

@@ -101,20 +101,39 @@ impl GainOptions {
         p1: Option<f64>,
         p2: Option<f64>,
     ) -> Result<GainOptions, String> {
+        GainOptions::checked_as(kp, kd, p, p1, p2, &|name| format!("--{name}"))
+    }
+
+    /// [`GainOptions::checked`] with the options spelled by `spell` in messages (`kp` as
+    /// `--kp` on the command line, as the keyword `kp` from Python).
+    pub fn checked_as(
+        kp: Option<f64>,
+        kd: Option<f64>,
+        p: Option<f64>,
+        p1: Option<f64>,
+        p2: Option<f64>,
+        spell: &dyn Fn(&str) -> String,
+    ) -> Result<GainOptions, String> {
         if p.is_some() && (p1.is_some() || p2.is_some()) {
-            return Err(
-                "--p sets both class-K gains; give either --p or --p1/--p2, not both".into(),
-            );
+            return Err(format!(
+                "{} sets both class-K gains; give either {} or {}/{}, not both",
+                spell("p"),
+                spell("p"),
+                spell("p1"),
+                spell("p2")
+            ));
         }
         let check = |name: &str, value: Option<f64>, limit| {
-            value.map(|v| check_number(name, v, limit)).transpose()
+            value
+                .map(|v| check_number(&spell(name), v, limit))
+                .transpose()
         };
-        let p = check("--p", p, &limits::BARRIER_GAIN_PER_S)?;
+        let p = check("p", p, &limits::BARRIER_GAIN_PER_S)?;
         Ok(GainOptions {
-            kp: check("--kp", kp, &limits::KP_N_PER_M)?,
-            kd: check("--kd", kd, &limits::KD_N_S_PER_M)?,
-            p1: p.or(check("--p1", p1, &limits::BARRIER_GAIN_PER_S)?),
-            p2: p.or(check("--p2", p2, &limits::BARRIER_GAIN_PER_S)?),
+            kp: check("kp", kp, &limits::KP_N_PER_M)?,
+            kd: check("kd", kd, &limits::KD_N_S_PER_M)?,
+            p1: p.or(check("p1", p1, &limits::BARRIER_GAIN_PER_S)?),
+            p2: p.or(check("p2", p2, &limits::BARRIER_GAIN_PER_S)?),
         })
     }
 }
