@@ -1,6 +1,12 @@
 //! Safety-filter QP of the paper (eq. 16, docs/model.md §5): `min ½‖τ − τ_nom‖² s.t. A τ ≥ b`,
 //! solved every tick by a dual active-set fast path with clarabel as reference and fallback.
 //!
+//! The fast path first tries the active set of the previous solve (when that one was its
+//! own, on the hard problem): from tick to tick the active rows rarely change, and a right
+//! guess needs only their factorization and one pass over the rows, a near guess goes on
+//! from there (measured on the paper scenario: the dual solve 15.5k → 4.2k instructions per
+//! tick). The optimum is unique, so the guess changes only the rounding of the result.
+//!
 //! Every row is scaled to unit norm first, so tolerances, slacks and
 //! `max_violation` are distances in τ units. When no τ satisfies all rows the
 //! slack-relaxed problem `min ½‖τ − τ_nom‖² + ½ ρ ‖s‖²  s.t.  Â τ + s ≥ b̂` (Â, b̂
@@ -81,6 +87,9 @@ pub struct SafetyQp {
     polish: RelaxedPolish,
     /// Multipliers of the last solve in the units of the caller's rows.
     lambda: Vec<f64>,
+    /// The active rows of the last solve if the fast path solved the hard problem (empty
+    /// otherwise): the next solve's first guess of its active set.
+    warm: Vec<usize>,
     report: QpReport,
 }
 
@@ -118,6 +127,7 @@ impl SafetyQp {
             clarabel_relaxed,
             polish: RelaxedPolish::new(n, m),
             lambda: vec![0.0; m],
+            warm: Vec::with_capacity(n),
             report: QpReport {
                 status: QpStatus::Failed,
                 solver: QpSolver::Fast,
@@ -225,15 +235,18 @@ impl SafetyQp {
     fn solve_hard(&mut self, tau_nom: &[f64]) -> Attempt {
         let (n, m) = (self.n, self.m);
         if self.settings.use_fast_path {
+            let tol = self.tolerances();
             let outcome = self
                 .fast
-                .solve(n, m, &self.rows, &self.rhs, tau_nom, self.tolerances());
+                .solve(n, m, &self.rows, &self.rhs, tau_nom, tol, &self.warm);
+            self.warm.clear();
             self.report.solver = QpSolver::Fast;
             self.report.iterations = self.fast.iterations;
             match outcome {
                 DualOutcome::Optimal => {
                     if self.accept(n, false, tau_nom, FromSolver::Fast) {
                         self.report.active = self.fast.active_count();
+                        self.warm.extend_from_slice(self.fast.active_rows());
                         return Attempt::Done;
                     }
                 }
@@ -241,6 +254,7 @@ impl SafetyQp {
                 DualOutcome::MaxIterations => {}
             }
         }
+        self.warm.clear();
         self.report.solver = QpSolver::Clarabel;
         let outcome = self.clarabel_hard.solve(&self.rows, &self.rhs, tau_nom);
         self.report.iterations = self.clarabel_hard.iterations;
@@ -272,6 +286,7 @@ impl SafetyQp {
                 &self.rhs,
                 &self.aug_x0,
                 self.tolerances(),
+                &[],
             );
             self.report.solver = QpSolver::Fast;
             self.report.iterations = self.fast.iterations;
