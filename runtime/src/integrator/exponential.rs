@@ -3,6 +3,8 @@
 //! the integrator rebuilds only when it has drifted; see the module docs of
 //! [`crate::integrator`] for why and what it costs.
 
+use crate::linalg::with_const_size;
+
 use super::{
     IntegratorError, OdeSystem, Stats, Tolerances, check_call, error_norm, shrink_after_rejection,
 };
@@ -183,26 +185,11 @@ impl PhiWork {
     }
 }
 
-/// Runs `$kernel(args…, m)` with `m` a compile-time constant for the state sizes of robots
-/// of one to four three-coordinate modules (`2n` = 6, 12, 18, 24), so that the kernel's
-/// loops over `m` unroll and vectorize without per-row bookkeeping (measured on the paper
-/// scenario, `m = 12`: the dense product 7.4k → ≈3k instructions); any other `m` runs the
-/// same code with `m` at run time. The arithmetic is the same either way.
-macro_rules! with_const_size {
-    ($kernel:ident($($arg:expr),*), $m:expr) => {
-        match $m {
-            6 => $kernel($($arg,)* 6),
-            12 => $kernel($($arg,)* 12),
-            18 => $kernel($($arg,)* 18),
-            24 => $kernel($($arg,)* 24),
-            m => $kernel($($arg,)* m),
-        }
-    };
-}
-
-/// `c = a b` for row-major `m × m` (dense: no test for zeros).
+/// `c = a b` for row-major `m × m` (dense: no test for zeros). The kernels below run with
+/// `m` a compile-time constant for the usual sizes ([`with_const_size`]; measured on the
+/// paper scenario, `m = 12`: the dense product 7.4k → 3.6k instructions).
 fn multiply_dense(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
-    with_const_size!(multiply_dense_sized(a, b, c), m)
+    with_const_size!(m, [6, 12, 18, 24], |m| multiply_dense_sized(a, b, c, m))
 }
 
 #[inline(always)]
@@ -253,7 +240,9 @@ fn row_times(row_a: &[f64], b: &[f64], row_c: &mut [f64], m: usize) {
 /// rows hold one entry each, which makes the 14 products by `X` of the Taylor series about
 /// half as dear.
 fn multiply_sparse_left(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
-    with_const_size!(multiply_sparse_left_sized(a, b, c), m)
+    with_const_size!(m, [6, 12, 18, 24], |m| {
+        multiply_sparse_left_sized(a, b, c, m)
+    })
 }
 
 #[inline(always)]
@@ -279,7 +268,7 @@ fn multiply_sparse_left_sized(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
 /// the additions from waiting on each other).
 #[inline]
 fn mat_vec(mat: &[f64], x: &[f64], y: &mut [f64]) {
-    with_const_size!(mat_vec_sized(mat, x, y), x.len())
+    with_const_size!(x.len(), [6, 12, 18, 24], |m| mat_vec_sized(mat, x, y, m))
 }
 
 #[inline(always)]
