@@ -1,7 +1,7 @@
 //! Goldfarb–Idnani dual active-set solver specialised to the projection
 //! `min ½‖x − x0‖²  s.t.  Nᵢ·x ≥ bᵢ` (identity Hessian, dense rows, no allocation).
 
-use crate::linalg::dot;
+use crate::linalg::{dot, with_const_size};
 
 /// How the dual active-set iteration ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -239,14 +239,31 @@ impl DualActiveSet {
         b: &[f64],
         tol: DualTolerances,
     ) -> usize {
-        let xnorm = self.x.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
+        with_const_size!(nv, [3, 6, 9, 12], |nv| {
+            self.most_violated_sized(m, rows, b, tol, nv)
+        })
+    }
+
+    /// [`DualActiveSet::most_violated`] with `nv` a compile-time constant for the usual
+    /// sizes.
+    #[inline(always)]
+    fn most_violated_sized(
+        &self,
+        m: usize,
+        rows: &[f64],
+        b: &[f64],
+        tol: DualTolerances,
+        nv: usize,
+    ) -> usize {
+        let x = &self.x[..nv];
+        let xnorm = x.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
         let mut p = usize::MAX;
         let mut worst = 0.0;
         for i in 0..m {
             if self.is_active[i] {
                 continue;
             }
-            let s = dot(&rows[i * nv..(i + 1) * nv], &self.x) - b[i];
+            let s = dot(&rows[i * nv..(i + 1) * nv], x) - b[i];
             let lim = tol.feas * (1.0 + b[i].abs() + xnorm);
             if s < -lim && s < worst {
                 worst = s;

@@ -20,7 +20,7 @@ mod settings;
 
 pub use settings::{QpSettings, QpSetupError};
 
-use crate::linalg::dot;
+use crate::linalg::{dot, with_const_size};
 use clarabel_backend::{ClarabelOutcome, ClarabelQp};
 use dual::{DualActiveSet, DualOutcome, DualTolerances};
 use polish::RelaxedPolish;
@@ -206,7 +206,12 @@ impl SafetyQp {
 
     /// Scales every row to unit norm; returns whether some row is impossible.
     fn scale_rows(&mut self, a: &[f64], b: &[f64]) -> bool {
-        let n = self.n;
+        with_const_size!(self.n, [3, 6, 9, 12], |n| self.scale_rows_sized(a, b, n))
+    }
+
+    /// [`SafetyQp::scale_rows`] with `n` a compile-time constant for the usual sizes.
+    #[inline(always)]
+    fn scale_rows_sized(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
         let mut any = false;
         for i in 0..self.m {
             let row = &a[i * n..(i + 1) * n];
@@ -345,6 +350,20 @@ impl SafetyQp {
     /// candidate of `from`; on success copies its multipliers into `self.lambda`
     /// (scaled units, converted in `finish`) and its τ into `aug_x0[..n]`.
     fn accept(&mut self, nv: usize, relaxed: bool, tau_nom: &[f64], from: FromSolver) -> bool {
+        with_const_size!(nv, [3, 6, 9, 12], |nv| {
+            self.accept_sized(nv, relaxed, tau_nom, from)
+        })
+    }
+
+    /// [`SafetyQp::accept`] with `nv` a compile-time constant for the usual sizes.
+    #[inline(always)]
+    fn accept_sized(
+        &mut self,
+        nv: usize,
+        relaxed: bool,
+        tau_nom: &[f64],
+        from: FromSolver,
+    ) -> bool {
         let (n, m) = (self.n, self.m);
         let (x, z): (&[f64], &[f64]) = match from {
             FromSolver::Fast => (&self.fast.x, &self.fast.lambda),
@@ -395,7 +414,15 @@ impl SafetyQp {
 
     /// Writes τ (left in `aug_x0[..n]` by `accept`), multipliers and the report.
     fn finish(&mut self, status: QpStatus, a: &[f64], b: &[f64], tau: &mut [f64]) -> &QpReport {
-        let n = self.n;
+        with_const_size!(self.n, [3, 6, 9, 12], |n| {
+            self.finish_sized(status, a, b, tau, n)
+        });
+        &self.report
+    }
+
+    /// [`SafetyQp::finish`] with `n` a compile-time constant for the usual sizes.
+    #[inline(always)]
+    fn finish_sized(&mut self, status: QpStatus, a: &[f64], b: &[f64], tau: &mut [f64], n: usize) {
         tau.copy_from_slice(&self.aug_x0[..n]);
         let mut worst = 0.0_f64;
         for i in 0..self.m {
@@ -416,7 +443,6 @@ impl SafetyQp {
         }
         self.report.status = status;
         self.report.max_violation = worst;
-        &self.report
     }
 
     fn fail(&mut self, tau: &mut [f64]) -> &QpReport {
