@@ -94,6 +94,26 @@ impl PhiWork {
     /// of `X` commute), whose last ones pass through `h_j A` and `h_j A/2`. Returns `false`
     /// on a non-finite result.
     fn compute(&mut self, a: &[f64], span: f64, m: usize, out: &mut [PhiSet]) -> bool {
+        // The linear part of a mechanical system, [[0, I], [·, ·]] (checked exactly).
+        let mechanical = m % 2 == 0 && is_mechanical(a, m);
+        self.compute_with(a, span, m, out, mechanical)
+    }
+
+    /// [`PhiWork::compute`], using the structure `[[0, I], [·, ·]]` of `a` if `mechanical`
+    /// (then `a` must have it): only the lower half rows of the products by `e^X` of the
+    /// doublings are computed for `φ₁`, `φ₂` and `e^X`, their upper half rows following
+    /// from `φ_k = I/k! + X φ_{k+1}`, whose upper half rows are `e_i/k! + s φ_{k+1}[n + i]`
+    /// for `X = [[0, sI], [·, ·]]` (and `e^X = I + X φ₁`): 2.5 products per doubling
+    /// instead of 4 (measured on the paper scenario: the `φ` families 112M → 95M
+    /// instructions over the run).
+    fn compute_with(
+        &mut self,
+        a: &[f64],
+        span: f64,
+        m: usize,
+        out: &mut [PhiSet],
+        mechanical: bool,
+    ) -> bool {
         let norm = (0..m)
             .map(|c| (0..m).map(|r| a[r * m + c].abs()).sum::<f64>())
             .fold(0.0, f64::max)
@@ -158,20 +178,70 @@ impl PhiWork {
             if k == squarings {
                 break;
             }
+            // With the structure, only the lower half rows of the products by e are
+            // needed for φ₁, φ₂ and e itself (their upper half rows follow from φ₂, φ₃).
+            let first = if mechanical { m / 2 } else { 0 };
             multiply_dense(&self.e, &self.p3, &mut self.t3, m);
-            multiply_dense(&self.e, &self.p2, &mut self.t2, m);
-            multiply_dense(&self.e, &self.p1, &mut self.t1, m);
-            let ps = self.p1.iter_mut().zip(&mut self.p2).zip(&mut self.p3);
-            let ts = self.t1.iter().zip(&self.t2).zip(&self.t3);
+            multiply_rows(&self.e, &self.p2, &mut self.t2, m, first);
+            multiply_rows(&self.e, &self.p1, &mut self.t1, m, first);
+            // φ₃ in full, φ₂ and φ₁ from row `first` on.
+            let (p1_top, p2_top, p3_top) = (
+                &self.p1[..first * m],
+                &self.p2[..first * m],
+                &mut self.p3[..first * m],
+            );
+            for (((p3, t3), v1), v2) in p3_top.iter_mut().zip(&self.t3).zip(p1_top).zip(p2_top) {
+                *p3 = 0.125 * (t3 + 0.5 * v1 + v2 + *p3);
+            }
+            let r = first * m..m * m;
+            let ps = self.p1[r.clone()]
+                .iter_mut()
+                .zip(&mut self.p2[r.clone()])
+                .zip(&mut self.p3[r.clone()]);
+            let ts = self.t1[r.clone()]
+                .iter()
+                .zip(&self.t2[r.clone()])
+                .zip(&self.t3[r]);
             for (((p1, p2), p3), ((t1, t2), t3)) in ps.zip(ts) {
                 let (v1, v2, v3) = (*p1, *p2, *p3);
                 *p3 = 0.125 * (t3 + 0.5 * v1 + v2 + v3);
                 *p2 = 0.25 * (t2 + v1 + v2);
                 *p1 = 0.5 * (t1 + v1);
             }
+            if mechanical {
+                // The upper half of X·2ᵏ⁺¹ is [0, s I]: φ_k = I/k! + X φ_{k+1} there reads
+                // φ_k[i] = e_i/k! + s φ_{k+1}[n + i] (rows), and e^X = I + X φ₁.
+                let n = m / 2;
+                let s = scale * 2.0_f64.powi(k + 1);
+                for (i, p3_low) in self.p3[..].chunks_exact(m).skip(n).enumerate() {
+                    let row = &mut self.p2[i * m..(i + 1) * m];
+                    for (p, low) in row.iter_mut().zip(p3_low) {
+                        *p = s * low;
+                    }
+                    row[i] += 0.5;
+                }
+                for (i, p2_low) in self.p2[..].chunks_exact(m).skip(n).enumerate() {
+                    let row = &mut self.p1[i * m..(i + 1) * m];
+                    for (p, low) in row.iter_mut().zip(p2_low) {
+                        *p = s * low;
+                    }
+                    row[i] += 1.0;
+                }
+            }
             if k + 1 < squarings {
-                multiply_dense(&self.e, &self.e, &mut self.t1, m);
+                multiply_rows(&self.e, &self.e, &mut self.t1, m, first);
                 std::mem::swap(&mut self.e, &mut self.t1);
+                if mechanical {
+                    let n = m / 2;
+                    let s = scale * 2.0_f64.powi(k + 1);
+                    for (i, p1_low) in self.p1[..].chunks_exact(m).skip(n).enumerate() {
+                        let row = &mut self.e[i * m..(i + 1) * m];
+                        for (e, low) in row.iter_mut().zip(p1_low) {
+                            *e = s * low;
+                        }
+                        row[i] += 1.0;
+                    }
+                }
             }
         }
         let mut valid = true;
@@ -182,6 +252,32 @@ impl PhiWork {
             valid &= set.valid;
         }
         valid
+    }
+}
+
+/// Whether the row-major `m × m` `a` (`m` even) is `[[0, I], [·, ·]]` exactly.
+fn is_mechanical(a: &[f64], m: usize) -> bool {
+    let n = m / 2;
+    a[..n * m].chunks_exact(m).enumerate().all(|(i, row)| {
+        row.iter()
+            .enumerate()
+            .all(|(j, &v)| v == if j == n + i { 1.0 } else { 0.0 })
+    })
+}
+
+/// Rows `first..m` of `c = a b` for row-major `m × m` (dense); rows above `first` of `c`
+/// are left as they were.
+fn multiply_rows(a: &[f64], b: &[f64], c: &mut [f64], m: usize, first: usize) {
+    with_const_size!(m, [6, 12, 18, 24], |m| {
+        multiply_rows_sized(a, b, c, first, m)
+    })
+}
+
+#[inline(always)]
+fn multiply_rows_sized(a: &[f64], b: &[f64], c: &mut [f64], first: usize, m: usize) {
+    let (a, b, c) = (&a[first * m..m * m], &b[..m * m], &mut c[first * m..m * m]);
+    for (row_a, row_c) in a.chunks_exact(m).zip(c.chunks_exact_mut(m)) {
+        row_times(row_a, b, row_c, m);
     }
 }
 
@@ -638,5 +734,79 @@ impl Exponential {
             }
         }
         Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The `φ` sets of a mechanical linear part computed with its structure agree with
+    /// the general computation to rounding, at every level.
+    #[test]
+    fn structured_phi_sets_agree_with_the_general_ones() {
+        let n = 6;
+        let m = 2 * n;
+        // [[0, I], [−M⁻¹K, −M⁻¹D]] for an SPD M with entries from 0.05 to 2.7 and stiff
+        // K, D, as the paper robot's.
+        let mut minv = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                minv[i * n + j] = if i == j {
+                    20.0 / (1.0 + i as f64)
+                } else {
+                    0.3 * ((i + 2 * j) as f64).sin()
+                };
+            }
+        }
+        let stiffness = [6250.0, 6250.0, 10.0, 6250.0, 6250.0, 10.0];
+        let damping = [3125.0, 3125.0, 5.0, 3125.0, 3125.0, 5.0];
+        let mut a = vec![0.0; m * m];
+        for i in 0..n {
+            a[i * m + n + i] = 1.0;
+            for j in 0..n {
+                let v = 0.5 * (minv[i * n + j] + minv[j * n + i]);
+                a[(n + i) * m + j] = -v * stiffness[j];
+                a[(n + i) * m + n + j] = -v * damping[j];
+            }
+        }
+        assert!(is_mechanical(&a, m));
+        let set = || PhiSet {
+            h: 0.0,
+            valid: false,
+            half: vec![0.0; m * m],
+            full: vec![0.0; m * m],
+            second: vec![0.0; m * m],
+            third: vec![0.0; m * m],
+        };
+        let mut worst = 0.0_f64;
+        for span in [1e-3, 1e-5] {
+            let mut general: Vec<PhiSet> = (0..LEVELS).map(|_| set()).collect();
+            let mut structured: Vec<PhiSet> = (0..LEVELS).map(|_| set()).collect();
+            let mut work = PhiWork::new(m);
+            assert!(work.compute_with(&a, span, m, &mut general, false));
+            assert!(work.compute_with(&a, span, m, &mut structured, true));
+            for (g, s) in general.iter().zip(&structured) {
+                assert_eq!(g.h, s.h);
+                for (gm, sm) in [(&g.half, &s.half), (&g.full, &s.full)]
+                    .into_iter()
+                    .chain([(&g.second, &s.second), (&g.third, &s.third)])
+                {
+                    // Relative to each row's largest entry: the rows of q and of q̇ differ
+                    // in scale by about ‖A‖.
+                    for (gr, sr) in gm.chunks_exact(m).zip(sm.chunks_exact(m)) {
+                        let size = gr.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
+                        for (x, y) in gr.iter().zip(sr) {
+                            worst = worst.max((x - y).abs() / size);
+                        }
+                    }
+                }
+            }
+        }
+        println!("largest difference relative to the row: {worst:e}");
+        assert!(worst < 1e-12, "{worst:e}");
+        // Not mechanical: a perturbed upper half.
+        a[1] = 1e-3;
+        assert!(!is_mechanical(&a, m));
     }
 }

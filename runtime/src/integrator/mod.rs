@@ -122,7 +122,9 @@
 //!
 //! A `φ` family costs ≈ 20 µs (≈ 40 products of `2n × 2n` matrices: 14 by `X` in the
 //! Taylor series, whose upper half rows `[0, I]` hold one entry each and are skipped over,
-//! and 4 per doubling), ≈ 1 µs per tick at one rebuild in 20 ticks. 417 of the 499
+//! and 4 per doubling; since, 2.5 per doubling: of the products by `e^X` for `φ₁`, `φ₂`
+//! and `e^X` only the lower half rows, the upper ones following from
+//! `φ_k = I/k! + X φ_{k+1}`), ≈ 1 µs per tick at one rebuild in 20 ticks. 417 of the 499
 //! rebuilds of the run follow a rejected step (en 1.0–2.2 at a whole-tick step around the
 //! barrier's activation, 0.5–0.9 s); rebuilding less after rejections trades them for more
 //! steps at about the same cost (threshold after a rejection 0.1 / 3 / 10: 499 / 353 / 178
