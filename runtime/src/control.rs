@@ -1052,27 +1052,10 @@ pub fn tick_nominal(
     // τ_nom, and n = h + G + K q + D q̇.
     let settings = &controller.settings;
     let ws = &controller.dynamics;
-    for i in 0..nq {
-        controller.tau_nom[i] = match nominal {
-            Nominal::Track(reference) => {
-                let row = i * nq..(i + 1) * nq;
-                let inertial = dot(&ws.mass_matrix[row], reference.qdd);
-                let mut feedback = 0.0;
-                for j in 0..nq {
-                    feedback += settings.kp[i * nq + j] * (reference.q[j] - q[j])
-                        + settings.kd[i * nq + j] * (reference.qd[j] - qd[j]);
-                }
-                inertial
-                    + ws.nonlinear[i]
-                    + model.stiffness[i] * reference.q[i]
-                    + model.damping[i] * reference.qd[i]
-                    + feedback
-            }
-            Nominal::Force(force) => force[i],
-        };
-        controller.drift[i] =
-            ws.nonlinear[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
-    }
+    let (tau_nom, drift) = (&mut controller.tau_nom, &mut controller.drift);
+    with_const_size!(nq, [3, 6, 9, 12], |nq| {
+        nominal_and_drift(model, settings, ws, q, qd, nominal, tau_nom, drift, nq)
+    });
     if !(all_finite(&controller.tau_nom)
         && all_finite(&controller.drift)
         && all_finite(barriers.values())
@@ -1133,6 +1116,46 @@ pub fn tick_nominal(
     let (rows, rhs) = (&mut controller.rows, &mut controller.rhs);
     with_const_size!(nq, [3, 6, 9, 12], |nq| paper.write(rows, rhs, nq));
     solve_rows(controller)
+}
+
+/// `τ_nom` (PD+ toward the reference, or the given force) and `n = h + G + K q + D q̇` of
+/// [`tick_nominal`], with `nq` a compile-time constant for the usual sizes
+/// ([`with_const_size`]).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn nominal_and_drift(
+    model: &Model,
+    settings: &ControllerSettings,
+    ws: &DynamicsWorkspace,
+    q: &[f64],
+    qd: &[f64],
+    nominal: Nominal<'_>,
+    tau_nom: &mut [f64],
+    drift: &mut [f64],
+    nq: usize,
+) {
+    let (q, qd) = (&q[..nq], &qd[..nq]);
+    for i in 0..nq {
+        tau_nom[i] = match nominal {
+            Nominal::Track(reference) => {
+                let (r_q, r_qd) = (&reference.q[..nq], &reference.qd[..nq]);
+                let row = i * nq..(i + 1) * nq;
+                let inertial = dot(&ws.mass_matrix[row], &reference.qdd[..nq]);
+                let mut feedback = 0.0;
+                for j in 0..nq {
+                    feedback += settings.kp[i * nq + j] * (r_q[j] - q[j])
+                        + settings.kd[i * nq + j] * (r_qd[j] - qd[j]);
+                }
+                inertial
+                    + ws.nonlinear[i]
+                    + model.stiffness[i] * r_q[i]
+                    + model.damping[i] * r_qd[i]
+                    + feedback
+            }
+            Nominal::Force(force) => force[i],
+        };
+        drift[i] = ws.nonlinear[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
+    }
 }
 
 /// What the paper's rows are made of (see [`tick_nominal`]).
