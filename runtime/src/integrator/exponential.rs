@@ -95,7 +95,7 @@ impl PhiWork {
     /// on a non-finite result.
     fn compute(&mut self, a: &[f64], span: f64, m: usize, out: &mut [PhiSet]) -> bool {
         // The linear part of a mechanical system, [[0, I], [·, ·]] (checked exactly).
-        let mechanical = m % 2 == 0 && is_mechanical(a, m);
+        let mechanical = m.is_multiple_of(2) && is_mechanical(a, m);
         self.compute_with(a, span, m, out, mechanical)
     }
 
