@@ -119,6 +119,12 @@
 //! |---|---|---|---|---|---|---|
 //! | ETD3RK as above | 2.93 | 3.92 | 3.42 | 1.09 | 0.05 | 1.41e-7 m |
 //! | + the tick's first rhs from the controller's evaluation, products by `X` skipping its zeros, vectorized `φ` updates, `A x` in four partial sums | 2.74 | 3.35 | 3.42 (1.0 of them a solve only) | 1.09 | 0.05 | 1.41e-7 m |
+//! | + kernels with the size a compile-time constant (`φ` products, `A x`, Cholesky, the drift; the controller's rows and QP loops), `φ` doublings on lower half rows, the QP started from the previous active set | 1.66 | 2.55 | 3.42 (1.0 of them a solve only) | 1.09 | 0.05 | 1.41e-7 m |
+//!
+//! The last row is the one-run split of `cargo bench -p softcbf --bench control --
+//! paper_scenario_10s` on the machine shared at load 2–3, where the code of the row before
+//! it gave 2.75 and 3.29 µs; callgrind counts 934M → 544M instructions for the whole run
+//! (control 416M → 205M, integration 502M → 323M).
 //!
 //! A `φ` family costs ≈ 20 µs (≈ 40 products of `2n × 2n` matrices: 14 by `X` in the
 //! Taylor series, whose upper half rows `[0, I]` hold one entry each and are skipped over,
