@@ -29,7 +29,7 @@ use crate::dynamics::{
 };
 use crate::hold::{HoldPrediction, comparison};
 use crate::integrator::{Rosenbrock, Tolerances};
-use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve, dot};
+use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve, dot, with_const_size};
 use crate::model::Model;
 use crate::plant::{PlantSystem, PlantWorkspace};
 use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
@@ -1052,27 +1052,10 @@ pub fn tick_nominal(
     // τ_nom, and n = h + G + K q + D q̇.
     let settings = &controller.settings;
     let ws = &controller.dynamics;
-    for i in 0..nq {
-        controller.tau_nom[i] = match nominal {
-            Nominal::Track(reference) => {
-                let row = i * nq..(i + 1) * nq;
-                let inertial = dot(&ws.mass_matrix[row], reference.qdd);
-                let mut feedback = 0.0;
-                for j in 0..nq {
-                    feedback += settings.kp[i * nq + j] * (reference.q[j] - q[j])
-                        + settings.kd[i * nq + j] * (reference.qd[j] - qd[j]);
-                }
-                inertial
-                    + ws.nonlinear[i]
-                    + model.stiffness[i] * reference.q[i]
-                    + model.damping[i] * reference.qd[i]
-                    + feedback
-            }
-            Nominal::Force(force) => force[i],
-        };
-        controller.drift[i] =
-            ws.nonlinear[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
-    }
+    let (tau_nom, drift) = (&mut controller.tau_nom, &mut controller.drift);
+    with_const_size!(nq, [3, 6, 9, 12], |nq| {
+        nominal_and_drift(model, settings, ws, q, qd, nominal, tau_nom, drift, nq)
+    });
     if !(all_finite(&controller.tau_nom)
         && all_finite(&controller.drift)
         && all_finite(barriers.values())
@@ -1119,25 +1102,105 @@ pub fn tick_nominal(
         &mut controller.inverse_mass,
         &mut controller.scratch,
     );
-    for k in 0..controller.nb {
-        let [p1, p2] = controller.barrier_gains[k].map(|p| p * scale);
-        let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
-        let row = &mut controller.rows[k * nq..(k + 1) * nq];
-        row.fill(0.0);
-        for (c, &j) in jacobian_row.iter().enumerate() {
-            if j != 0.0 {
-                let inverse_row = &controller.inverse_mass[c * nq..(c + 1) * nq];
-                for (a, m) in row.iter_mut().zip(inverse_row) {
-                    *a += j * m;
+    let paper = PaperRows {
+        nb: controller.nb,
+        jacobian: barriers.jacobian(),
+        jdot_qd: barriers.jdot_qd(),
+        values: barriers.values(),
+        gains: &controller.barrier_gains,
+        scale,
+        inverse_mass: &controller.inverse_mass,
+        drift: &controller.drift,
+        qd,
+    };
+    let (rows, rhs) = (&mut controller.rows, &mut controller.rhs);
+    with_const_size!(nq, [3, 6, 9, 12], |nq| paper.write(rows, rhs, nq));
+    solve_rows(controller)
+}
+
+/// `τ_nom` (PD+ toward the reference, or the given force) and `n = h + G + K q + D q̇` of
+/// [`tick_nominal`], with `nq` a compile-time constant for the usual sizes
+/// ([`with_const_size`]).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn nominal_and_drift(
+    model: &Model,
+    settings: &ControllerSettings,
+    ws: &DynamicsWorkspace,
+    q: &[f64],
+    qd: &[f64],
+    nominal: Nominal<'_>,
+    tau_nom: &mut [f64],
+    drift: &mut [f64],
+    nq: usize,
+) {
+    let (q, qd) = (&q[..nq], &qd[..nq]);
+    for i in 0..nq {
+        tau_nom[i] = match nominal {
+            Nominal::Track(reference) => {
+                let (r_q, r_qd) = (&reference.q[..nq], &reference.qd[..nq]);
+                let row = i * nq..(i + 1) * nq;
+                let inertial = dot(&ws.mass_matrix[row], &reference.qdd[..nq]);
+                let mut feedback = 0.0;
+                for j in 0..nq {
+                    feedback += settings.kp[i * nq + j] * (r_q[j] - q[j])
+                        + settings.kd[i * nq + j] * (r_qd[j] - qd[j]);
+                }
+                inertial
+                    + ws.nonlinear[i]
+                    + model.stiffness[i] * r_q[i]
+                    + model.damping[i] * r_qd[i]
+                    + feedback
+            }
+            Nominal::Force(force) => force[i],
+        };
+        drift[i] = ws.nonlinear[i] + model.stiffness[i] * q[i] + model.damping[i] * qd[i];
+    }
+}
+
+/// What the paper's rows are made of (see [`tick_nominal`]).
+struct PaperRows<'a> {
+    /// Barriers: the first `nb` rows (input limits follow).
+    nb: usize,
+    jacobian: &'a [f64],
+    jdot_qd: &'a [f64],
+    values: &'a [f64],
+    gains: &'a [[f64; 2]],
+    scale: f64,
+    inverse_mass: &'a [f64],
+    drift: &'a [f64],
+    qd: &'a [f64],
+}
+
+impl PaperRows<'_> {
+    /// Writes the rows `J_k M⁻¹` and right-hand sides of every barrier `k`, with `nq` a
+    /// compile-time constant for the usual sizes ([`with_const_size`]).
+    #[inline(always)]
+    fn write(&self, rows: &mut [f64], rhs: &mut [f64], nq: usize) {
+        let (drift, qd) = (&self.drift[..nq], &self.qd[..nq]);
+        let inverse_mass = &self.inverse_mass[..nq * nq];
+        for (k, (jacobian_row, row)) in self
+            .jacobian
+            .chunks_exact(nq)
+            .zip(rows.chunks_exact_mut(nq))
+            .enumerate()
+            .take(self.nb)
+        {
+            let [p1, p2] = self.gains[k].map(|p| p * self.scale);
+            row.fill(0.0);
+            for (&j, inverse_row) in jacobian_row.iter().zip(inverse_mass.chunks_exact(nq)) {
+                if j != 0.0 {
+                    for (a, m) in row.iter_mut().zip(inverse_row) {
+                        *a += j * m;
+                    }
                 }
             }
+            rhs[k] = dot(jacobian_row, drift)
+                - self.jdot_qd[k]
+                - (p1 + p2) * dot(jacobian_row, qd)
+                - p1 * p2 * self.values[k];
         }
-        controller.rhs[k] = dot(jacobian_row, &controller.drift)
-            - barriers.jdot_qd()[k]
-            - (p1 + p2) * dot(jacobian_row, qd)
-            - p1 * p2 * barriers.values()[k];
     }
-    solve_rows(controller)
 }
 
 /// The sampled-data rows and their QP passes (docs/model.md §5): for every barrier `k` and

@@ -1,6 +1,21 @@
 //! Small dense factorizations on preallocated row-major slices, for the mass matrix and the
 //! integrators' W matrices: Cholesky for symmetric positive definite, LU with pivoting else.
 
+/// `with_const_size!(n, [sizes…], |n| kernel(…, n))` calls the closure with `n` a
+/// compile-time constant when it is one of `sizes`, so that the kernel's loops over `n`
+/// unroll and vectorize without per-row bookkeeping; any other `n` runs the same code with
+/// `n` at run time. The arithmetic is the same either way. The sizes used are those of the
+/// robots of one to four three-coordinate modules (`nq` = 3, 6, 9, 12; states of `2 nq`).
+macro_rules! with_const_size {
+    ($n:expr, [$($size:literal),*], $kernel:expr) => {
+        match $n {
+            $($size => ($kernel)($size),)*
+            n => ($kernel)(n),
+        }
+    };
+}
+pub(crate) use with_const_size;
+
 /// `aᵀ b` over the common length of `a` and `b`: the one dot product of the runtime.
 #[inline]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -12,6 +27,11 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// Returns `false` if `A` is not (numerically) positive definite or holds a non-finite
 /// entry. Rows are taken as slices, so the inner products run without index checks.
 pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    with_const_size!(n, [3, 6, 9, 12], |n| cholesky_in_place_sized(a, n))
+}
+
+#[inline(always)]
+fn cholesky_in_place_sized(a: &mut [f64], n: usize) -> bool {
     let a = &mut a[..n * n];
     for j in 0..n {
         let (row_j, below) = a[j * n..].split_at_mut(n);
@@ -31,6 +51,11 @@ pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
 
 /// Solves `L Lᵀ y = b` in place with the factor from [`cholesky_in_place`].
 pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    with_const_size!(n, [3, 6, 9, 12], |n| cholesky_solve_sized(l, b, n))
+}
+
+#[inline(always)]
+fn cholesky_solve_sized(l: &[f64], b: &mut [f64], n: usize) {
     let (l, b) = (&l[..n * n], &mut b[..n]);
     for (i, row) in l.chunks_exact(n).enumerate() {
         b[i] = (b[i] - dot(&row[..i], &b[..i])) / row[i];
@@ -47,6 +72,13 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
 /// `A⁻¹` (row-major `n×n`, symmetric) from the factor of [`cholesky_in_place`]: the inverse
 /// of `L` by forward substitution, then `A⁻¹ = L⁻ᵀ L⁻¹`. `work` is scratch of `n×n`.
 pub fn cholesky_inverse(l: &[f64], n: usize, inverse: &mut [f64], work: &mut [f64]) {
+    with_const_size!(n, [3, 6, 9, 12], |n| {
+        cholesky_inverse_sized(l, inverse, work, n)
+    })
+}
+
+#[inline(always)]
+fn cholesky_inverse_sized(l: &[f64], inverse: &mut [f64], work: &mut [f64], n: usize) {
     let (l, inverse, work) = (&l[..n * n], &mut inverse[..n * n], &mut work[..n * n]);
     // work = L⁻¹ (lower triangular), column by column.
     work.fill(0.0);

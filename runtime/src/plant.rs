@@ -29,7 +29,7 @@ use crate::dynamics::{
 use crate::integrator::{
     Exponential, IntegratorError, LinearPart, MechanicalW, OdeSystem, Stats, Tolerances, WSolve,
 };
-use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve};
+use crate::linalg::{cholesky_in_place, cholesky_inverse, cholesky_solve, with_const_size};
 use crate::model::Model;
 
 /// The workspace of the plant's equations for one model: the held `τ` and what the
@@ -221,27 +221,50 @@ impl LinearPart for PlantSystem<'_> {
             return 0.0;
         }
         let ws = &mut *self.workspace;
-        let change = &mut ws.scratch[..nq * nq];
-        for ((c, m), r) in change
-            .iter_mut()
-            .zip(&ws.dynamics.mass_matrix)
-            .zip(&ws.reference_mass)
-        {
-            *c = m - r;
-        }
-        let row_out = &mut ws.scratch2[..nq];
-        let mut worst = 0.0_f64;
-        for row in ws.reference_inverse.chunks_exact(nq) {
-            row_out.fill(0.0);
-            for (r, change_row) in row.iter().zip(change.chunks_exact(nq)) {
-                for (o, c) in row_out.iter_mut().zip(change_row) {
-                    *o += r * c;
-                }
-            }
-            worst = worst.max(row_out.iter().map(|v| v.abs()).sum());
-        }
-        worst
+        with_const_size!(nq, [3, 6, 9, 12], |nq| {
+            drift_sized(
+                &ws.dynamics.mass_matrix,
+                &ws.reference_mass,
+                &ws.reference_inverse,
+                &mut ws.scratch,
+                &mut ws.scratch2,
+                nq,
+            )
+        })
     }
+}
+
+/// `‖M_ref⁻¹ (M − M_ref)‖∞` for `nq × nq` matrices, `scratch` and `row_out` of that size
+/// and more.
+#[inline(always)]
+fn drift_sized(
+    mass: &[f64],
+    reference_mass: &[f64],
+    reference_inverse: &[f64],
+    scratch: &mut [f64],
+    row_out: &mut [f64],
+    nq: usize,
+) -> f64 {
+    let change = &mut scratch[..nq * nq];
+    for ((c, m), r) in change
+        .iter_mut()
+        .zip(&mass[..nq * nq])
+        .zip(&reference_mass[..nq * nq])
+    {
+        *c = m - r;
+    }
+    let row_out = &mut row_out[..nq];
+    let mut worst = 0.0_f64;
+    for row in reference_inverse[..nq * nq].chunks_exact(nq) {
+        row_out.fill(0.0);
+        for (r, change_row) in row.iter().zip(change.chunks_exact(nq)) {
+            for (o, c) in row_out.iter_mut().zip(change_row) {
+                *o += r * c;
+            }
+        }
+        worst = worst.max(row_out.iter().map(|v| v.abs()).sum());
+    }
+    worst
 }
 
 /// Whether `a` and `b` hold the same numbers bit for bit.

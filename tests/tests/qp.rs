@@ -525,3 +525,74 @@ fn fast_path_does_not_allocate() {
         (allocations() - before) as f64 / 100.0
     );
 }
+
+/// One solver reused along a path of slowly changing problems (as from tick to tick, when
+/// it starts from the previous active set) gives what a fresh solver gives for each, to
+/// rounding, including where the active set changes; so does one reused across unrelated
+/// problems (a wrong guess).
+#[test]
+fn warm_started_solves_agree_with_fresh_ones() {
+    let mut rng = softcbf_tests::rng(23);
+    let mut warm = SafetyQp::new(6, 12, QpSettings::default()).unwrap();
+    let (mut changes, mut compared, mut active_solves) = (0, 0, 0);
+    let mut last_active = usize::MAX;
+    for path in 0..60 {
+        let base = loop {
+            let inst = feasible_instance(&mut rng, path);
+            if inst.n == 6 && inst.m == 12 {
+                break inst;
+            }
+        };
+        let scale = 1.0 + inf_norm(&base.tau_nom);
+        let drift_tau: Vec<f64> = (0..6)
+            .map(|_| scale * rng.random_range(-0.02..0.02))
+            .collect();
+        let drift_b: Vec<f64> = (0..12)
+            .map(|_| scale * rng.random_range(-0.01..0.01))
+            .collect();
+        for step in 0..100 {
+            let t = step as f64;
+            let mut inst = base.clone();
+            for (v, d) in inst.tau_nom.iter_mut().zip(&drift_tau) {
+                *v += t * d;
+            }
+            for (i, d) in drift_b.iter().enumerate() {
+                let norm = row_norm(&inst.a[i * 6..(i + 1) * 6]);
+                inst.b[i] += t * d * norm;
+            }
+            let mut fresh = SafetyQp::new(6, 12, QpSettings::default()).unwrap();
+            let (mut tau_warm, mut tau_fresh) = (vec![0.0; 6], vec![0.0; 6]);
+            let rw = warm
+                .solve(&inst.tau_nom, &inst.a, &inst.b, &mut tau_warm)
+                .clone();
+            let rf = fresh
+                .solve(&inst.tau_nom, &inst.a, &inst.b, &mut tau_fresh)
+                .clone();
+            assert_eq!(rw.status, rf.status, "path {path} step {step}");
+            if rw.status != QpStatus::Solved {
+                continue;
+            }
+            compared += 1;
+            let diff = tau_warm
+                .iter()
+                .zip(&tau_fresh)
+                .fold(0.0_f64, |acc, (a, b)| acc.max((a - b).abs()));
+            let tol = 1e-9 * (1.0 + inf_norm(&tau_fresh));
+            assert!(
+                diff <= tol,
+                "path {path} step {step}: τ differs by {diff:e}"
+            );
+            let res = kkt_residual(&inst, &tau_warm, warm.multipliers());
+            assert!(res < 1e-9, "path {path} step {step}: KKT residual {res:e}");
+            if rw.active > 0 {
+                active_solves += 1;
+            }
+            if rw.active != last_active {
+                changes += 1;
+                last_active = rw.active;
+            }
+        }
+    }
+    println!("{compared} compared, {active_solves} with active rows, {changes} active-set changes");
+    assert!(compared > 3000 && active_solves > 1000 && changes > 100);
+}

@@ -3,6 +3,8 @@
 //! the integrator rebuilds only when it has drifted; see the module docs of
 //! [`crate::integrator`] for why and what it costs.
 
+use crate::linalg::with_const_size;
+
 use super::{
     IntegratorError, OdeSystem, Stats, Tolerances, check_call, error_norm, shrink_after_rejection,
 };
@@ -92,6 +94,26 @@ impl PhiWork {
     /// of `X` commute), whose last ones pass through `h_j A` and `h_j A/2`. Returns `false`
     /// on a non-finite result.
     fn compute(&mut self, a: &[f64], span: f64, m: usize, out: &mut [PhiSet]) -> bool {
+        // The linear part of a mechanical system, [[0, I], [·, ·]] (checked exactly).
+        let mechanical = m.is_multiple_of(2) && is_mechanical(a, m);
+        self.compute_with(a, span, m, out, mechanical)
+    }
+
+    /// [`PhiWork::compute`], using the structure `[[0, I], [·, ·]]` of `a` if `mechanical`
+    /// (then `a` must have it): only the lower half rows of the products by `e^X` of the
+    /// doublings are computed for `φ₁`, `φ₂` and `e^X`, their upper half rows following
+    /// from `φ_k = I/k! + X φ_{k+1}`, whose upper half rows are `e_i/k! + s φ_{k+1}[n + i]`
+    /// for `X = [[0, sI], [·, ·]]` (and `e^X = I + X φ₁`): 2.5 products per doubling
+    /// instead of 4 (measured on the paper scenario: the `φ` families 112M → 95M
+    /// instructions over the run).
+    fn compute_with(
+        &mut self,
+        a: &[f64],
+        span: f64,
+        m: usize,
+        out: &mut [PhiSet],
+        mechanical: bool,
+    ) -> bool {
         let norm = (0..m)
             .map(|c| (0..m).map(|r| a[r * m + c].abs()).sum::<f64>())
             .fold(0.0, f64::max)
@@ -156,20 +178,70 @@ impl PhiWork {
             if k == squarings {
                 break;
             }
+            // With the structure, only the lower half rows of the products by e are
+            // needed for φ₁, φ₂ and e itself (their upper half rows follow from φ₂, φ₃).
+            let first = if mechanical { m / 2 } else { 0 };
             multiply_dense(&self.e, &self.p3, &mut self.t3, m);
-            multiply_dense(&self.e, &self.p2, &mut self.t2, m);
-            multiply_dense(&self.e, &self.p1, &mut self.t1, m);
-            let ps = self.p1.iter_mut().zip(&mut self.p2).zip(&mut self.p3);
-            let ts = self.t1.iter().zip(&self.t2).zip(&self.t3);
+            multiply_rows(&self.e, &self.p2, &mut self.t2, m, first);
+            multiply_rows(&self.e, &self.p1, &mut self.t1, m, first);
+            // φ₃ in full, φ₂ and φ₁ from row `first` on.
+            let (p1_top, p2_top, p3_top) = (
+                &self.p1[..first * m],
+                &self.p2[..first * m],
+                &mut self.p3[..first * m],
+            );
+            for (((p3, t3), v1), v2) in p3_top.iter_mut().zip(&self.t3).zip(p1_top).zip(p2_top) {
+                *p3 = 0.125 * (t3 + 0.5 * v1 + v2 + *p3);
+            }
+            let r = first * m..m * m;
+            let ps = self.p1[r.clone()]
+                .iter_mut()
+                .zip(&mut self.p2[r.clone()])
+                .zip(&mut self.p3[r.clone()]);
+            let ts = self.t1[r.clone()]
+                .iter()
+                .zip(&self.t2[r.clone()])
+                .zip(&self.t3[r]);
             for (((p1, p2), p3), ((t1, t2), t3)) in ps.zip(ts) {
                 let (v1, v2, v3) = (*p1, *p2, *p3);
                 *p3 = 0.125 * (t3 + 0.5 * v1 + v2 + v3);
                 *p2 = 0.25 * (t2 + v1 + v2);
                 *p1 = 0.5 * (t1 + v1);
             }
+            if mechanical {
+                // The upper half of X·2ᵏ⁺¹ is [0, s I]: φ_k = I/k! + X φ_{k+1} there reads
+                // φ_k[i] = e_i/k! + s φ_{k+1}[n + i] (rows), and e^X = I + X φ₁.
+                let n = m / 2;
+                let s = scale * 2.0_f64.powi(k + 1);
+                for (i, p3_low) in self.p3[..].chunks_exact(m).skip(n).enumerate() {
+                    let row = &mut self.p2[i * m..(i + 1) * m];
+                    for (p, low) in row.iter_mut().zip(p3_low) {
+                        *p = s * low;
+                    }
+                    row[i] += 0.5;
+                }
+                for (i, p2_low) in self.p2[..].chunks_exact(m).skip(n).enumerate() {
+                    let row = &mut self.p1[i * m..(i + 1) * m];
+                    for (p, low) in row.iter_mut().zip(p2_low) {
+                        *p = s * low;
+                    }
+                    row[i] += 1.0;
+                }
+            }
             if k + 1 < squarings {
-                multiply_dense(&self.e, &self.e, &mut self.t1, m);
+                multiply_rows(&self.e, &self.e, &mut self.t1, m, first);
                 std::mem::swap(&mut self.e, &mut self.t1);
+                if mechanical {
+                    let n = m / 2;
+                    let s = scale * 2.0_f64.powi(k + 1);
+                    for (i, p1_low) in self.p1[..].chunks_exact(m).skip(n).enumerate() {
+                        let row = &mut self.e[i * m..(i + 1) * m];
+                        for (e, low) in row.iter_mut().zip(p1_low) {
+                            *e = s * low;
+                        }
+                        row[i] += 1.0;
+                    }
+                }
             }
         }
         let mut valid = true;
@@ -183,35 +255,79 @@ impl PhiWork {
     }
 }
 
-/// `c = a b` for row-major `m × m` (dense: no test for zeros).
-fn multiply_dense(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
+/// Whether the row-major `m × m` `a` (`m` even) is `[[0, I], [·, ·]]` exactly.
+fn is_mechanical(a: &[f64], m: usize) -> bool {
+    let n = m / 2;
+    a[..n * m].chunks_exact(m).enumerate().all(|(i, row)| {
+        row.iter()
+            .enumerate()
+            .all(|(j, &v)| v == if j == n + i { 1.0 } else { 0.0 })
+    })
+}
+
+/// Rows `first..m` of `c = a b` for row-major `m × m` (dense); rows above `first` of `c`
+/// are left as they were.
+fn multiply_rows(a: &[f64], b: &[f64], c: &mut [f64], m: usize, first: usize) {
+    with_const_size!(m, [6, 12, 18, 24], |m| {
+        multiply_rows_sized(a, b, c, first, m)
+    })
+}
+
+#[inline(always)]
+fn multiply_rows_sized(a: &[f64], b: &[f64], c: &mut [f64], first: usize, m: usize) {
+    let (a, b, c) = (&a[first * m..m * m], &b[..m * m], &mut c[first * m..m * m]);
     for (row_a, row_c) in a.chunks_exact(m).zip(c.chunks_exact_mut(m)) {
         row_times(row_a, b, row_c, m);
     }
 }
 
-/// `row_c = row_a b` for a row-major `m × m` `b`, four rows of `b` per pass over `row_c`.
+/// `c = a b` for row-major `m × m` (dense: no test for zeros). The kernels below run with
+/// `m` a compile-time constant for the usual sizes ([`with_const_size`]; measured on the
+/// paper scenario, `m = 12`: the dense product 7.4k → 3.6k instructions).
+fn multiply_dense(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
+    with_const_size!(m, [6, 12, 18, 24], |m| multiply_dense_sized(a, b, c, m))
+}
+
+#[inline(always)]
+fn multiply_dense_sized(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
+    let (a, b, c) = (&a[..m * m], &b[..m * m], &mut c[..m * m]);
+    for (row_a, row_c) in a.chunks_exact(m).zip(c.chunks_exact_mut(m)) {
+        row_times(row_a, b, row_c, m);
+    }
+}
+
+/// `row_c = row_a b` for a row-major `m × m` `b`: four columns of `row_c` at a time, held in
+/// registers over the whole sum, which takes four rows of `b` per addition
+/// (`c += ((a₀b₀ + a₁b₁) + a₂b₂) + a₃b₃`, then the last `m mod 4` one by one).
 #[inline(always)]
 fn row_times(row_a: &[f64], b: &[f64], row_c: &mut [f64], m: usize) {
-    row_c.fill(0.0);
-    let mut k = 0;
-    while k + 4 <= m {
-        let (a0, a1, a2, a3) = (row_a[k], row_a[k + 1], row_a[k + 2], row_a[k + 3]);
-        let b0 = &b[k * m..(k + 1) * m];
-        let b1 = &b[(k + 1) * m..(k + 2) * m];
-        let b2 = &b[(k + 2) * m..(k + 3) * m];
-        let b3 = &b[(k + 3) * m..(k + 4) * m];
-        for ((((c, x0), x1), x2), x3) in row_c.iter_mut().zip(b0).zip(b1).zip(b2).zip(b3) {
-            *c += a0 * x0 + a1 * x1 + a2 * x2 + a3 * x3;
+    let row_a = &row_a[..m];
+    let b = &b[..m * m];
+    let blocks = m / 4;
+    let mut j = 0;
+    while j < m {
+        let width = (m - j).min(4);
+        let mut acc = [0.0; 4];
+        for kb in 0..blocks {
+            let k = 4 * kb;
+            let (a0, a1, a2, a3) = (row_a[k], row_a[k + 1], row_a[k + 2], row_a[k + 3]);
+            let b0 = &b[k * m + j..k * m + j + width];
+            let b1 = &b[(k + 1) * m + j..(k + 1) * m + j + width];
+            let b2 = &b[(k + 2) * m + j..(k + 2) * m + j + width];
+            let b3 = &b[(k + 3) * m + j..(k + 3) * m + j + width];
+            for l in 0..width {
+                acc[l] += a0 * b0[l] + a1 * b1[l] + a2 * b2[l] + a3 * b3[l];
+            }
         }
-        k += 4;
-    }
-    while k < m {
-        let a0 = row_a[k];
-        for (c, x0) in row_c.iter_mut().zip(&b[k * m..(k + 1) * m]) {
-            *c += a0 * x0;
+        for k in 4 * blocks..m {
+            let a0 = row_a[k];
+            let b0 = &b[k * m + j..k * m + j + width];
+            for l in 0..width {
+                acc[l] += a0 * b0[l];
+            }
         }
-        k += 1;
+        row_c[j..j + width].copy_from_slice(&acc[..width]);
+        j += width;
     }
 }
 
@@ -220,6 +336,14 @@ fn row_times(row_a: &[f64], b: &[f64], row_c: &mut [f64], m: usize) {
 /// rows hold one entry each, which makes the 14 products by `X` of the Taylor series about
 /// half as dear.
 fn multiply_sparse_left(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
+    with_const_size!(m, [6, 12, 18, 24], |m| {
+        multiply_sparse_left_sized(a, b, c, m)
+    })
+}
+
+#[inline(always)]
+fn multiply_sparse_left_sized(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
+    let (a, b, c) = (&a[..m * m], &b[..m * m], &mut c[..m * m]);
     for (row_a, row_c) in a.chunks_exact(m).zip(c.chunks_exact_mut(m)) {
         if row_a.iter().filter(|v| **v != 0.0).count() > 2 {
             row_times(row_a, b, row_c, m);
@@ -240,7 +364,12 @@ fn multiply_sparse_left(a: &[f64], b: &[f64], c: &mut [f64], m: usize) {
 /// the additions from waiting on each other).
 #[inline]
 fn mat_vec(mat: &[f64], x: &[f64], y: &mut [f64]) {
-    let m = x.len();
+    with_const_size!(x.len(), [6, 12, 18, 24], |m| mat_vec_sized(mat, x, y, m))
+}
+
+#[inline(always)]
+fn mat_vec_sized(mat: &[f64], x: &[f64], y: &mut [f64], m: usize) {
+    let (mat, x, y) = (&mat[..m * m], &x[..m], &mut y[..m]);
     for (yi, row) in y.iter_mut().zip(mat.chunks_exact(m)) {
         let mut parts = [0.0; 4];
         let (row4, x4) = (row.chunks_exact(4), x.chunks_exact(4));
@@ -605,5 +734,79 @@ impl Exponential {
             }
         }
         Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The `φ` sets of a mechanical linear part computed with its structure agree with
+    /// the general computation to rounding, at every level.
+    #[test]
+    fn structured_phi_sets_agree_with_the_general_ones() {
+        let n = 6;
+        let m = 2 * n;
+        // [[0, I], [−M⁻¹K, −M⁻¹D]] for an SPD M with entries from 0.05 to 2.7 and stiff
+        // K, D, as the paper robot's.
+        let mut minv = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                minv[i * n + j] = if i == j {
+                    20.0 / (1.0 + i as f64)
+                } else {
+                    0.3 * ((i + 2 * j) as f64).sin()
+                };
+            }
+        }
+        let stiffness = [6250.0, 6250.0, 10.0, 6250.0, 6250.0, 10.0];
+        let damping = [3125.0, 3125.0, 5.0, 3125.0, 3125.0, 5.0];
+        let mut a = vec![0.0; m * m];
+        for i in 0..n {
+            a[i * m + n + i] = 1.0;
+            for j in 0..n {
+                let v = 0.5 * (minv[i * n + j] + minv[j * n + i]);
+                a[(n + i) * m + j] = -v * stiffness[j];
+                a[(n + i) * m + n + j] = -v * damping[j];
+            }
+        }
+        assert!(is_mechanical(&a, m));
+        let set = || PhiSet {
+            h: 0.0,
+            valid: false,
+            half: vec![0.0; m * m],
+            full: vec![0.0; m * m],
+            second: vec![0.0; m * m],
+            third: vec![0.0; m * m],
+        };
+        let mut worst = 0.0_f64;
+        for span in [1e-3, 1e-5] {
+            let mut general: Vec<PhiSet> = (0..LEVELS).map(|_| set()).collect();
+            let mut structured: Vec<PhiSet> = (0..LEVELS).map(|_| set()).collect();
+            let mut work = PhiWork::new(m);
+            assert!(work.compute_with(&a, span, m, &mut general, false));
+            assert!(work.compute_with(&a, span, m, &mut structured, true));
+            for (g, s) in general.iter().zip(&structured) {
+                assert_eq!(g.h, s.h);
+                for (gm, sm) in [(&g.half, &s.half), (&g.full, &s.full)]
+                    .into_iter()
+                    .chain([(&g.second, &s.second), (&g.third, &s.third)])
+                {
+                    // Relative to each row's largest entry: the rows of q and of q̇ differ
+                    // in scale by about ‖A‖.
+                    for (gr, sr) in gm.chunks_exact(m).zip(sm.chunks_exact(m)) {
+                        let size = gr.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
+                        for (x, y) in gr.iter().zip(sr) {
+                            worst = worst.max((x - y).abs() / size);
+                        }
+                    }
+                }
+            }
+        }
+        println!("largest difference relative to the row: {worst:e}");
+        assert!(worst < 1e-12, "{worst:e}");
+        // Not mechanical: a perturbed upper half.
+        a[1] = 1e-3;
+        assert!(!is_mechanical(&a, m));
     }
 }

@@ -119,10 +119,18 @@
 //! |---|---|---|---|---|---|---|
 //! | ETD3RK as above | 2.93 | 3.92 | 3.42 | 1.09 | 0.05 | 1.41e-7 m |
 //! | + the tick's first rhs from the controller's evaluation, products by `X` skipping its zeros, vectorized `φ` updates, `A x` in four partial sums | 2.74 | 3.35 | 3.42 (1.0 of them a solve only) | 1.09 | 0.05 | 1.41e-7 m |
+//! | + kernels with the size a compile-time constant (`φ` products, `A x`, Cholesky, the drift; the controller's rows and QP loops), `φ` doublings on lower half rows, the QP started from the previous active set | 1.66 | 2.55 | 3.42 (1.0 of them a solve only) | 1.09 | 0.05 | 1.41e-7 m |
+//!
+//! The last row is the one-run split of `cargo bench -p softcbf --bench control --
+//! paper_scenario_10s` on the machine shared at load 2–3, where the code of the row before
+//! it gave 2.75 and 3.29 µs; callgrind counts 934M → 544M instructions for the whole run
+//! (control 416M → 205M, integration 502M → 323M).
 //!
 //! A `φ` family costs ≈ 20 µs (≈ 40 products of `2n × 2n` matrices: 14 by `X` in the
 //! Taylor series, whose upper half rows `[0, I]` hold one entry each and are skipped over,
-//! and 4 per doubling), ≈ 1 µs per tick at one rebuild in 20 ticks. 417 of the 499
+//! and 4 per doubling; since, 2.5 per doubling: of the products by `e^X` for `φ₁`, `φ₂`
+//! and `e^X` only the lower half rows, the upper ones following from
+//! `φ_k = I/k! + X φ_{k+1}`), ≈ 1 µs per tick at one rebuild in 20 ticks. 417 of the 499
 //! rebuilds of the run follow a rejected step (en 1.0–2.2 at a whole-tick step around the
 //! barrier's activation, 0.5–0.9 s); rebuilding less after rejections trades them for more
 //! steps at about the same cost (threshold after a rejection 0.1 / 3 / 10: 499 / 353 / 178

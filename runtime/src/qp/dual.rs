@@ -1,7 +1,7 @@
 //! Goldfarb–Idnani dual active-set solver specialised to the projection
 //! `min ½‖x − x0‖²  s.t.  Nᵢ·x ≥ bᵢ` (identity Hessian, dense rows, no allocation).
 
-use crate::linalg::dot;
+use crate::linalg::{dot, with_const_size};
 
 /// How the dual active-set iteration ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -12,6 +12,18 @@ pub(crate) enum DualOutcome {
     Infeasible,
     /// The iteration budget ran out (cycling on degenerate data, or a huge problem).
     MaxIterations,
+}
+
+/// What a guessed active set gave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Guess {
+    /// It is the optimum's.
+    Optimal,
+    /// Its multipliers are `≥ 0` but some other row is violated: the dual method goes on
+    /// from there.
+    DualFeasible,
+    /// Not usable: start from no active row.
+    Unusable,
 }
 
 /// Tolerances of one dual active-set run.
@@ -74,18 +86,13 @@ impl DualActiveSet {
         self.active.len()
     }
 
-    /// Solves the projection for `nv` variables and `m` rows. `rows` is row-major
-    /// `m × nv` with unit-norm (or zero) rows, `b` the right-hand sides, `x0` the
-    /// point projected. Sizes must not exceed those given to `new`.
-    pub(crate) fn solve(
-        &mut self,
-        nv: usize,
-        m: usize,
-        rows: &[f64],
-        b: &[f64],
-        x0: &[f64],
-        tol: DualTolerances,
-    ) -> DualOutcome {
+    /// Active rows at the end of the last solve, in factor order.
+    pub(crate) fn active_rows(&self) -> &[usize] {
+        &self.active
+    }
+
+    /// Starts a solve: `x = x0`, no active row, `Q = I`.
+    fn start(&mut self, nv: usize, m: usize, x0: &[f64]) {
         let ld = self.nv_max;
         self.x.clear();
         self.x.extend_from_slice(&x0[..nv]);
@@ -100,23 +107,47 @@ impl DualActiveSet {
             col.fill(0.0);
             col[j] = 1.0;
         }
+    }
+
+    /// Solves the projection for `nv` variables and `m` rows. `rows` is row-major
+    /// `m × nv` with unit-norm (or zero) rows, `b` the right-hand sides, `x0` the
+    /// point projected. Sizes must not exceed those given to `new`.
+    ///
+    /// `guess` (for example the previous tick's [`DualActiveSet::active_rows`]) is tried
+    /// first as the active set: its rows are factored and `x` put where they all hold.
+    /// If their multipliers are all `≥ 0`, that is a starting point of the dual method
+    /// (the optimum with these rows as constraints), from which the iteration below goes
+    /// on as usual: with no other row violated it ends at once, else it adds rows (and
+    /// drops some) as from its usual start. Otherwise (a row repeated or out of range,
+    /// linearly dependent rows, a negative multiplier) it starts from no active row. The
+    /// problem is strictly convex, its optimum unique: the guess changes only the
+    /// rounding of the result and how many steps lead there.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn solve(
+        &mut self,
+        nv: usize,
+        m: usize,
+        rows: &[f64],
+        b: &[f64],
+        x0: &[f64],
+        tol: DualTolerances,
+        guess: &[usize],
+    ) -> DualOutcome {
+        let mut warm = Guess::Unusable;
+        if !guess.is_empty() && guess.len() <= nv {
+            self.start(nv, m, x0);
+            warm = self.try_active_set(nv, m, rows, b, x0, tol, guess);
+        }
+        match warm {
+            Guess::Optimal => return DualOutcome::Optimal,
+            Guess::DualFeasible => {}
+            Guess::Unusable => self.start(nv, m, x0),
+        }
+        let ld = self.nv_max;
 
         loop {
             // Step 1: the most violated row (in distance units: rows are unit-norm).
-            let xnorm = self.x.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
-            let mut p = usize::MAX;
-            let mut worst = 0.0;
-            for i in 0..m {
-                if self.is_active[i] {
-                    continue;
-                }
-                let s = dot(&rows[i * nv..(i + 1) * nv], &self.x) - b[i];
-                let lim = tol.feas * (1.0 + b[i].abs() + xnorm);
-                if s < -lim && s < worst {
-                    worst = s;
-                    p = i;
-                }
-            }
+            let p = self.most_violated(nv, m, rows, b, tol);
             if p == usize::MAX {
                 self.polish(nv, b, x0);
                 for (k, &i) in self.active.iter().enumerate() {
@@ -196,6 +227,94 @@ impl DualActiveSet {
                 self.drop_row(nv, k_drop);
             }
         }
+    }
+
+    /// The inactive row most violated at `x` (`usize::MAX` if none is violated beyond the
+    /// tolerance).
+    fn most_violated(
+        &self,
+        nv: usize,
+        m: usize,
+        rows: &[f64],
+        b: &[f64],
+        tol: DualTolerances,
+    ) -> usize {
+        with_const_size!(nv, [3, 6, 9, 12], |nv| {
+            self.most_violated_sized(m, rows, b, tol, nv)
+        })
+    }
+
+    /// [`DualActiveSet::most_violated`] with `nv` a compile-time constant for the usual
+    /// sizes.
+    #[inline(always)]
+    fn most_violated_sized(
+        &self,
+        m: usize,
+        rows: &[f64],
+        b: &[f64],
+        tol: DualTolerances,
+        nv: usize,
+    ) -> usize {
+        let x = &self.x[..nv];
+        let xnorm = x.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
+        let mut p = usize::MAX;
+        let mut worst = 0.0;
+        for i in 0..m {
+            if self.is_active[i] {
+                continue;
+            }
+            let s = dot(&rows[i * nv..(i + 1) * nv], x) - b[i];
+            let lim = tol.feas * (1.0 + b[i].abs() + xnorm);
+            if s < -lim && s < worst {
+                worst = s;
+                p = i;
+            }
+        }
+        p
+    }
+
+    /// Tries `guess` as the active set (see [`DualActiveSet::solve`]): on
+    /// [`Guess::Optimal`] `x` and `lambda` hold the optimum, on [`Guess::DualFeasible`] the
+    /// iteration can go on from the factorization, `x` and `u`.
+    #[allow(clippy::too_many_arguments)]
+    fn try_active_set(
+        &mut self,
+        nv: usize,
+        m: usize,
+        rows: &[f64],
+        b: &[f64],
+        x0: &[f64],
+        tol: DualTolerances,
+        guess: &[usize],
+    ) -> Guess {
+        let ld = self.nv_max;
+        for &p in guess {
+            if p >= m || self.is_active[p] {
+                return Guess::Unusable;
+            }
+            let row_p = &rows[p * nv..(p + 1) * nv];
+            for j in 0..nv {
+                self.d[j] = dot(&self.q[j * ld..j * ld + nv], row_p);
+            }
+            let nq = self.active.len();
+            if dot(&self.d[nq..nv], &self.d[nq..nv]).sqrt() <= tol.dependence {
+                return Guess::Unusable;
+            }
+            self.iterations += 1;
+            self.add_row(nv, p, 0.0);
+        }
+        // x where the guessed rows hold, and their multipliers.
+        self.polish(nv, b, x0);
+        if !self.u.iter().all(|&u| u >= 0.0) || !self.x.iter().all(|v| v.is_finite()) {
+            return Guess::Unusable;
+        }
+        if self.most_violated(nv, m, rows, b, tol) != usize::MAX {
+            return Guess::DualFeasible;
+        }
+        for (k, &i) in self.active.iter().enumerate() {
+            self.lambda[i] = self.u[k];
+        }
+        Guess::Optimal
     }
 
     /// Appends row `p` (whose `d = Qᵀ N_p` is in `self.d`) to the factorization.

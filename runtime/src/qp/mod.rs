@@ -1,6 +1,12 @@
 //! Safety-filter QP of the paper (eq. 16, docs/model.md §5): `min ½‖τ − τ_nom‖² s.t. A τ ≥ b`,
 //! solved every tick by a dual active-set fast path with clarabel as reference and fallback.
 //!
+//! The fast path first tries the active set of the previous solve (when that one was its
+//! own, on the hard problem): from tick to tick the active rows rarely change, and a right
+//! guess needs only their factorization and one pass over the rows, a near guess goes on
+//! from there (measured on the paper scenario: the dual solve 15.5k → 4.2k instructions per
+//! tick). The optimum is unique, so the guess changes only the rounding of the result.
+//!
 //! Every row is scaled to unit norm first, so tolerances, slacks and
 //! `max_violation` are distances in τ units. When no τ satisfies all rows the
 //! slack-relaxed problem `min ½‖τ − τ_nom‖² + ½ ρ ‖s‖²  s.t.  Â τ + s ≥ b̂` (Â, b̂
@@ -14,7 +20,7 @@ mod settings;
 
 pub use settings::{QpSettings, QpSetupError};
 
-use crate::linalg::dot;
+use crate::linalg::{dot, with_const_size};
 use clarabel_backend::{ClarabelOutcome, ClarabelQp};
 use dual::{DualActiveSet, DualOutcome, DualTolerances};
 use polish::RelaxedPolish;
@@ -81,6 +87,9 @@ pub struct SafetyQp {
     polish: RelaxedPolish,
     /// Multipliers of the last solve in the units of the caller's rows.
     lambda: Vec<f64>,
+    /// The active rows of the last solve if the fast path solved the hard problem (empty
+    /// otherwise): the next solve's first guess of its active set.
+    warm: Vec<usize>,
     report: QpReport,
 }
 
@@ -118,6 +127,7 @@ impl SafetyQp {
             clarabel_relaxed,
             polish: RelaxedPolish::new(n, m),
             lambda: vec![0.0; m],
+            warm: Vec::with_capacity(n),
             report: QpReport {
                 status: QpStatus::Failed,
                 solver: QpSolver::Fast,
@@ -196,7 +206,12 @@ impl SafetyQp {
 
     /// Scales every row to unit norm; returns whether some row is impossible.
     fn scale_rows(&mut self, a: &[f64], b: &[f64]) -> bool {
-        let n = self.n;
+        with_const_size!(self.n, [3, 6, 9, 12], |n| self.scale_rows_sized(a, b, n))
+    }
+
+    /// [`SafetyQp::scale_rows`] with `n` a compile-time constant for the usual sizes.
+    #[inline(always)]
+    fn scale_rows_sized(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
         let mut any = false;
         for i in 0..self.m {
             let row = &a[i * n..(i + 1) * n];
@@ -225,15 +240,18 @@ impl SafetyQp {
     fn solve_hard(&mut self, tau_nom: &[f64]) -> Attempt {
         let (n, m) = (self.n, self.m);
         if self.settings.use_fast_path {
+            let tol = self.tolerances();
             let outcome = self
                 .fast
-                .solve(n, m, &self.rows, &self.rhs, tau_nom, self.tolerances());
+                .solve(n, m, &self.rows, &self.rhs, tau_nom, tol, &self.warm);
+            self.warm.clear();
             self.report.solver = QpSolver::Fast;
             self.report.iterations = self.fast.iterations;
             match outcome {
                 DualOutcome::Optimal => {
                     if self.accept(n, false, tau_nom, FromSolver::Fast) {
                         self.report.active = self.fast.active_count();
+                        self.warm.extend_from_slice(self.fast.active_rows());
                         return Attempt::Done;
                     }
                 }
@@ -241,6 +259,7 @@ impl SafetyQp {
                 DualOutcome::MaxIterations => {}
             }
         }
+        self.warm.clear();
         self.report.solver = QpSolver::Clarabel;
         let outcome = self.clarabel_hard.solve(&self.rows, &self.rhs, tau_nom);
         self.report.iterations = self.clarabel_hard.iterations;
@@ -272,6 +291,7 @@ impl SafetyQp {
                 &self.rhs,
                 &self.aug_x0,
                 self.tolerances(),
+                &[],
             );
             self.report.solver = QpSolver::Fast;
             self.report.iterations = self.fast.iterations;
@@ -330,6 +350,20 @@ impl SafetyQp {
     /// candidate of `from`; on success copies its multipliers into `self.lambda`
     /// (scaled units, converted in `finish`) and its τ into `aug_x0[..n]`.
     fn accept(&mut self, nv: usize, relaxed: bool, tau_nom: &[f64], from: FromSolver) -> bool {
+        with_const_size!(nv, [3, 6, 9, 12], |nv| {
+            self.accept_sized(nv, relaxed, tau_nom, from)
+        })
+    }
+
+    /// [`SafetyQp::accept`] with `nv` a compile-time constant for the usual sizes.
+    #[inline(always)]
+    fn accept_sized(
+        &mut self,
+        nv: usize,
+        relaxed: bool,
+        tau_nom: &[f64],
+        from: FromSolver,
+    ) -> bool {
         let (n, m) = (self.n, self.m);
         let (x, z): (&[f64], &[f64]) = match from {
             FromSolver::Fast => (&self.fast.x, &self.fast.lambda),
@@ -380,7 +414,15 @@ impl SafetyQp {
 
     /// Writes τ (left in `aug_x0[..n]` by `accept`), multipliers and the report.
     fn finish(&mut self, status: QpStatus, a: &[f64], b: &[f64], tau: &mut [f64]) -> &QpReport {
-        let n = self.n;
+        with_const_size!(self.n, [3, 6, 9, 12], |n| {
+            self.finish_sized(status, a, b, tau, n)
+        });
+        &self.report
+    }
+
+    /// [`SafetyQp::finish`] with `n` a compile-time constant for the usual sizes.
+    #[inline(always)]
+    fn finish_sized(&mut self, status: QpStatus, a: &[f64], b: &[f64], tau: &mut [f64], n: usize) {
         tau.copy_from_slice(&self.aug_x0[..n]);
         let mut worst = 0.0_f64;
         for i in 0..self.m {
@@ -401,7 +443,6 @@ impl SafetyQp {
         }
         self.report.status = status;
         self.report.max_violation = worst;
-        &self.report
     }
 
     fn fail(&mut self, tau: &mut [f64]) -> &QpReport {
