@@ -129,6 +129,126 @@ pub fn emit(order: usize) -> TokenStream {
     }
 }
 
+/// `f_s`, `f_c` and their u-derivatives up to `order` (≤ [`MAX_ORDER`]) at `u`, computed
+/// at run time exactly as the emitted `pcc_fs_fc_<order>` computes them: the same
+/// coefficients, switch points, scaling and operation order, so the same bits. Returns
+/// `([f_s, f_s', …], [f_c, f_c', …])` with entries past `order` zero. For the interpreter
+/// of the generated model (`softcbf-generated`'s `interpreted`).
+///
+/// # Panics
+///
+/// If `order > MAX_ORDER` (the emitter refuses it too).
+pub fn evaluate(order: usize, u: f64) -> ([f64; MAX_ORDER + 1], [f64; MAX_ORDER + 1]) {
+    assert!(
+        order <= MAX_ORDER,
+        "pcc_fs_fc_{order}: switch points are measured up to order {MAX_ORDER}"
+    );
+    let tables = SeriesTables::get();
+    let (mut fs, mut fc) = ([0.0; MAX_ORDER + 1], [0.0; MAX_ORDER + 1]);
+    if u < SWITCH_POINTS[0] {
+        let w = tables.small.scaled(u);
+        let w2 = w * w;
+        for k in 0..=order {
+            let (s, c) = &tables.small.orders[k];
+            fs[k] = horner2_value(s, k, w, w2);
+            fc[k] = horner2_value(c, k, w, w2);
+        }
+        return (fs, fc);
+    }
+    let t = u.sqrt();
+    let (sn, cs) = t.sin_cos();
+    let inv = 1.0 / u;
+    fs[0] = sn / t;
+    fc[0] = (1.0 - cs) * inv;
+    for k in 1..=order {
+        if u < SWITCH_POINTS[k] {
+            let series = &tables.per_order[k];
+            let w = series.scaled(u);
+            let w2 = w * w;
+            let (s, c) = &series.orders[0];
+            fs[k] = horner2_value(s, k, w, w2);
+            fc[k] = horner2_value(c, k, w, w2);
+        } else if k == 1 {
+            fs[1] = (cs - fs[0]) * (0.5 * inv);
+            fc[1] = (0.5 * fs[0] - fc[0]) * inv;
+        } else {
+            let odd = (2 * k - 1) as f64;
+            fs[k] = (-(0.5 * fs[k - 2]) - odd * fs[k - 1]) * (0.5 * inv);
+            fc[k] = (0.5 * fs[k - 1] - k as f64 * fc[k - 1]) * inv;
+        }
+    }
+    (fs, fc)
+}
+
+/// The coefficients [`evaluate`] reads, computed once by the emitter's own
+/// [`series_coefficients`].
+struct SeriesTables {
+    /// Every order's series on `[0, U_0)`.
+    small: Series,
+    /// Order k's series on `[U_0, U_k)` (entry 0 unused).
+    per_order: Vec<Series>,
+}
+
+/// Series valid on `[0, u_max]`: the scaling of `w` and the f_s, f_c magnitudes per order.
+struct Series {
+    /// `2^−m` of `w = u·2^−m`, `None` when `m = 0` (the emitted code writes `w = u`).
+    factor: Option<f64>,
+    /// `(f_s, f_c)` coefficient magnitudes, one pair per order held.
+    orders: Vec<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Series {
+    fn new(orders: std::ops::RangeInclusive<usize>, u_max: f64) -> Series {
+        let m = scale_log2(u_max);
+        Series {
+            factor: (m != 0).then(|| 2f64.powi(-m)),
+            orders: orders
+                .map(|k| {
+                    (
+                        series_coefficients(k, false, u_max),
+                        series_coefficients(k, true, u_max),
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    fn scaled(&self, u: f64) -> f64 {
+        match self.factor {
+            Some(factor) => u * factor,
+            None => u,
+        }
+    }
+}
+
+impl SeriesTables {
+    fn get() -> &'static SeriesTables {
+        static TABLES: std::sync::OnceLock<SeriesTables> = std::sync::OnceLock::new();
+        TABLES.get_or_init(|| SeriesTables {
+            small: Series::new(0..=MAX_ORDER, SWITCH_POINTS[0]),
+            per_order: (0..=MAX_ORDER)
+                .map(|k| Series::new(k..=k, SWITCH_POINTS[k]))
+                .collect(),
+        })
+    }
+}
+
+/// The value of [`horner2`]'s expression: `±(E(w²) − w·O(w²))` with the same nesting.
+fn horner2_value(b: &[f64], k: usize, w: f64, w2: f64) -> f64 {
+    let nest = |start: usize| -> Option<f64> {
+        let mut coeffs = b.iter().skip(start).step_by(2).rev();
+        let last = *coeffs.next()?;
+        Some(coeffs.fold(last, |acc, &coef| coef + w2 * acc))
+    };
+    let e = nest(0).expect("a series has its leading coefficient");
+    match nest(1) {
+        None if k.is_multiple_of(2) => e,
+        None => -e,
+        Some(o) if k.is_multiple_of(2) => e - w * o,
+        Some(o) => w * o - e,
+    }
+}
+
 /// Closed-form recurrence for order `k ≥ 1` in terms of `fs{k−1}`, `fs{k−2}`, `fc{k−1}`,
 /// `cs` and `inv = 1/u`.
 fn closed_step(k: usize) -> (TokenStream, TokenStream) {

@@ -5,7 +5,8 @@
 //! subexpressions, and [`emit`] writing Rust through syn/quote/prettyplease. The analytic
 //! functions `f_s`, `f_c` of docs/model.md §2 and their derivatives are nodes of their own,
 //! evaluated by [`analytic`]'s series-or-closed-form code. [`model`] builds the PCC
-//! kinematics, barriers and joint terms of a robot's `Structure`. Robot files and the
+//! kinematics, barriers and joint terms of a robot's `Structure`; [`eval`] runs the same
+//! programs on f64 at run time (the interpreter of a structure that was not compiled in). Robot files and the
 //! parameter layout are `softcbf-description`'s: the generator reads structures only.
 //!
 //! ```
@@ -21,6 +22,7 @@
 pub mod analytic;
 pub mod diff;
 pub mod emit;
+pub mod eval;
 pub mod expr;
 pub mod model;
 pub mod program;

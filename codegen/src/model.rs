@@ -398,6 +398,23 @@ fn params_read(arena: &Arena, params: &[(Id, usize)], expr: Id) -> Vec<usize> {
     found.into_iter().collect()
 }
 
+/// The outputs of each generated function, in the order its emitted code writes them
+/// ([`SymbolicModel::function_outputs`]).
+#[derive(Clone, Debug)]
+pub struct FunctionOutputs {
+    /// `segment_transforms`: per module, per row `r` of 0–2, `R[r][0..3]` then `t[r]`.
+    pub segment_transforms: Vec<Id>,
+    /// `barriers`: each barrier's value.
+    pub barriers: Vec<Id>,
+    /// `barrier_terms`: per barrier, `b`, its Jacobian row (`nq` entries), `J̇q̇`.
+    pub barrier_terms: Vec<Id>,
+    /// `joint_terms`: per module, per row `r` of 0–2 `R[r][0..3]` then `t[r]`, then per
+    /// row `r` of 0–5 `S[r][0..3]` then `c_J[r]`.
+    pub joint_terms: Vec<Id>,
+    /// `model_terms`: the joint terms, then the barrier terms.
+    pub model_terms: Vec<Id>,
+}
+
 /// A generated model file and what it costs.
 pub struct GeneratedSource {
     /// The formatted Rust source.
@@ -550,6 +567,62 @@ impl SymbolicModel {
         (subspace, bias)
     }
 
+    /// The places and values `segment_transforms` writes (rows 0–2 of each `T_i`).
+    fn segment_outputs(&self) -> Vec<(TokenStream, Id)> {
+        let mut outputs = Vec::new();
+        for (i, m) in self.modules.iter().enumerate() {
+            let i_lit = Literal::usize_unsuffixed(i);
+            for r in 0..3 {
+                let r_lit = Literal::usize_unsuffixed(r);
+                for c in 0..3 {
+                    let c_lit = Literal::usize_unsuffixed(c);
+                    outputs.push((quote!(transforms[#i_lit][#r_lit][#c_lit]), m.rotation[r][c]));
+                }
+                outputs.push((quote!(transforms[#i_lit][#r_lit][3]), m.translation[r]));
+            }
+        }
+        outputs
+    }
+
+    /// The outputs of every generated function as expressions, built exactly as
+    /// [`SymbolicModel::emit`] builds them and in the order its code writes them: what the
+    /// interpreter of the generated model evaluates.
+    pub fn function_outputs(&mut self) -> FunctionOutputs {
+        let ids = |outputs: Vec<(TokenStream, Id)>| outputs.into_iter().map(|(_, id)| id).collect();
+        let segment_transforms = ids(self.segment_outputs());
+        let barriers = self.barrier_exprs();
+        // The order `emit` follows: barrier terms first, then the joint terms.
+        let barrier_terms: Vec<Id> = ids(self.barrier_term_outputs());
+        let joint_terms: Vec<Id> = ids(self.joint_outputs());
+        let model_terms = joint_terms.iter().chain(&barrier_terms).copied().collect();
+        FunctionOutputs {
+            segment_transforms,
+            barriers,
+            barrier_terms,
+            joint_terms,
+            model_terms,
+        }
+    }
+
+    /// The input symbols: the parameters in parameter-vector order, then `q` and `q̇`
+    /// (`3·module + k` order, like the generated functions' arrays).
+    pub fn input_symbols(&self) -> (Vec<Id>, Vec<Id>, Vec<Id>) {
+        let params = self.params.iter().map(|&(id, _)| id).collect();
+        let q = self.modules.iter().flat_map(|m| m.q).collect();
+        let qd = self.modules.iter().flat_map(|m| m.qd).collect();
+        (params, q, qd)
+    }
+
+    /// Parameter names in parameter-vector order.
+    pub fn param_names(&self) -> &[String] {
+        &self.param_names
+    }
+
+    /// The structure this model was built for.
+    pub fn structure(&self) -> &Structure {
+        &self.structure
+    }
+
     /// The places and values `barrier_terms` writes: each barrier, its Jacobian row (zero
     /// past the barrier's module) and `J̇q̇`.
     fn barrier_term_outputs(&mut self) -> Vec<(TokenStream, Id)> {
@@ -614,18 +687,7 @@ impl SymbolicModel {
         };
 
         // Segment transforms T_i.
-        let mut outputs = Vec::new();
-        for (i, m) in self.modules.iter().enumerate() {
-            let i_lit = Literal::usize_unsuffixed(i);
-            for r in 0..3 {
-                let r_lit = Literal::usize_unsuffixed(r);
-                for c in 0..3 {
-                    let c_lit = Literal::usize_unsuffixed(c);
-                    outputs.push((quote!(transforms[#i_lit][#r_lit][#c_lit]), m.rotation[r][c]));
-                }
-                outputs.push((quote!(transforms[#i_lit][#r_lit][3]), m.translation[r]));
-            }
-        }
+        let outputs = self.segment_outputs();
         let spec = FunctionSpec {
             name: format_ident!("segment_transforms"),
             doc: vec![

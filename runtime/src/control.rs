@@ -485,7 +485,8 @@ impl RobustMargin {
                     factors[i].mass = 1.0 + sign * u.mass;
                     let plant = uncertainty::scaled(&model.robot, &factors)
                         .map_err(|e| robust_error(e.to_string()))?;
-                    let plant = Model::new(plant).map_err(|e| robust_error(e.to_string()))?;
+                    let plant = Model::with_generated(plant, model.generated)
+                        .map_err(|e| robust_error(e.to_string()))?;
                     perturbations.push(Perturbation::Mass(Box::new(plant)));
                 }
             }

@@ -30,6 +30,17 @@ pub enum ModelError {
         routing: &'static str,
         available: String,
     },
+    /// A generated model given for a robot of another structure.
+    #[error(
+        "{source_file}: the generated model {generated} is for the structure {expected}, \
+         not this robot's {found}"
+    )]
+    StructureMismatch {
+        source_file: String,
+        generated: &'static str,
+        expected: &'static str,
+        found: String,
+    },
 }
 
 /// `path`, absolute, as one shell word of a command printed to be copied.
@@ -66,10 +77,9 @@ fn routing_name(routing: Routing) -> &'static str {
 }
 
 impl Model {
-    /// Joins a robot to the generated model of its structure.
+    /// Joins a robot to the generated model of its structure (`softcbf_generated::find`).
     pub fn new(robot: Robot) -> Result<Model, ModelError> {
         let structure = robot.structure();
-        let routing = routing_name(structure.routing);
         let Some(generated) = softcbf_generated::find(&structure) else {
             let available: Vec<String> = softcbf_generated::MODELS
                 .iter()
@@ -78,12 +88,33 @@ impl Model {
             return Err(ModelError::NoGeneratedModel {
                 source_file: robot.source.display().to_string(),
                 modules: structure.modules(),
+                routing: routing_name(structure.routing),
                 corners: structure.corners,
                 tendons: structure.tendons,
-                routing,
                 available: available.join(", "),
             });
         };
+        Model::with_generated(robot, generated)
+    }
+
+    /// Joins a robot to the given model functions of its structure: a compiled model, one
+    /// interpreted at run time (`softcbf_generated::interpreted`, feature `interpreter`),
+    /// or the model of another robot of the same structure. Refused
+    /// ([`ModelError::StructureMismatch`]) if `generated` is for another structure.
+    pub fn with_generated(
+        robot: Robot,
+        generated: &'static dyn GeneratedModel,
+    ) -> Result<Model, ModelError> {
+        let structure = robot.structure();
+        let key = structure.key();
+        if generated.structure_key() != key {
+            return Err(ModelError::StructureMismatch {
+                source_file: robot.source.display().to_string(),
+                generated: generated.name(),
+                expected: generated.structure_key(),
+                found: key,
+            });
+        }
         let layout = param_layout(&structure);
         assert!(
             layout

@@ -444,7 +444,8 @@ pub fn simulate(
                     difference,
                 });
             }
-            Some(Model::new(robot.clone())?)
+            // Same structure: the main model's functions (compiled or interpreted).
+            Some(Model::with_generated(robot.clone(), model.generated)?)
         }
         None => None,
     };

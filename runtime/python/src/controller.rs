@@ -61,6 +61,7 @@ impl Controller {
     #[pyo3(signature = (robot, *, kp=None, kd=None, p=None, p1=None, p2=None, filter=true, safety=None, control_period=0.001))]
     #[allow(clippy::too_many_arguments)] // the Python signature's keywords, one each
     fn new(
+        py: Python<'_>,
         robot: &Robot,
         kp: Option<f64>,
         kd: Option<f64>,
@@ -71,7 +72,7 @@ impl Controller {
         safety: Option<&str>,
         control_period: f64,
     ) -> PyResult<Controller> {
-        let model = robot.build_model()?;
+        let model = robot.build_model(py, true)?;
         let gains = GainOptions::checked_as(kp, kd, p, p1, p2, &|name| name.to_string())
             .map_err(value_error)?;
         let period = check_number("control_period", control_period, &limits::CONTROL_PERIOD_S)

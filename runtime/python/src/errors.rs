@@ -62,16 +62,62 @@ pub fn file_error(py: Python<'_>, error: &FileError) -> PyErr {
 
 /// A robot whose structure this build has no model for: the message names the one command
 /// that builds the package with it (the checkout the package was built from, if it is
-/// still there).
+/// still there). A model given for another structure (a programming error) is a
+/// `RuntimeError`.
 pub fn model_error(error: &ModelError) -> PyErr {
-    let ModelError::NoGeneratedModel {
-        source_file,
-        modules,
-        corners,
-        tendons,
-        routing,
-        available,
-    } = error;
+    match error {
+        ModelError::NoGeneratedModel { .. } => {
+            NoGeneratedModelError::new_err(format!("{}. {}", no_model(error), rebuild(error)))
+        }
+        ModelError::StructureMismatch { .. } => PyRuntimeError::new_err(error.to_string()),
+    }
+}
+
+/// How much slower the interpreted model is than compiled code, as the warning says it:
+/// medians of `cargo bench -p softcbf-tests --bench interpreter` (`model_terms` of 1 to 8
+/// paper modules ≈ 25×; the paper scenario's closed loop for 1 s ≈ 2.3×).
+pub const INTERPRETED_COST: &str = "about 25 times slower per model evaluation than compiled \
+     code; a control tick or a simulation about 2 to 3 times slower";
+
+/// The warning of a robot run on the interpreted model: what is missing, what it costs and
+/// the command that builds compiled code for it.
+pub fn interpreted_warning(py: Python<'_>, error: &ModelError) -> PyResult<()> {
+    let message = format!(
+        "{}; using its model interpreted at run time instead ({INTERPRETED_COST}). {}",
+        no_model(error),
+        rebuild(error)
+    );
+    // A NUL cannot come from a path shell_word quoted; replace it rather than fail.
+    let message =
+        std::ffi::CString::new(message.replace('\0', "?")).expect("no NUL left in the message");
+    let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
+    // stacklevel 1: the warning points at the Python line that made the model.
+    PyErr::warn(py, category.as_any(), &message, 1)
+}
+
+/// `FILE: no generated model for … in this build of the softcbf package, which has: …`.
+fn no_model(error: &ModelError) -> String {
+    match error {
+        ModelError::NoGeneratedModel {
+            source_file,
+            modules,
+            corners,
+            tendons,
+            routing,
+            available,
+        } => format!(
+            "{source_file}: no generated model for {modules} modules with corners {corners:?} \
+             and tendons {tendons:?} ({routing}) in this build of the softcbf package, which \
+             has: {available}"
+        ),
+        other => other.to_string(),
+    }
+}
+
+/// The command that builds the package with the robot's model compiled in.
+fn rebuild(error: &ModelError) -> String {
+    let (ModelError::NoGeneratedModel { source_file, .. }
+    | ModelError::StructureMismatch { source_file, .. }) = error;
     let file = std::path::absolute(source_file).unwrap_or_else(|_| source_file.into());
     let file = shell_word(&file);
     let package = env!("CARGO_MANIFEST_DIR");
@@ -83,14 +129,12 @@ pub fn model_error(error: &ModelError) -> PyErr {
     } else {
         "<your softcbf checkout>/runtime/python".to_string()
     };
-    NoGeneratedModelError::new_err(format!(
-        "{source_file}: no generated model for {modules} modules with corners {corners:?} and \
-         tendons {tendons:?} ({routing}) in this build of the softcbf package, which has: \
-         {available}. Build the package with this robot's model (needs a Rust toolchain; a \
-         few minutes):\n  SOFTCBF_ROBOTS={file} pip install --force-reinstall {package}\n\
+    format!(
+        "Build the package with this robot's model (needs a Rust toolchain; a few \
+         minutes):\n  SOFTCBF_ROBOTS={file} pip install --force-reinstall {package}\n\
          (to keep it in every later build, register it once: cargo run --release -p \
-         softcbf-codegen -- add {file})",
-    ))
+         softcbf-codegen -- add {file})"
+    )
 }
 
 /// A message of the runtime's option checks (ranges, sizes) as a `ValueError`.

@@ -27,7 +27,7 @@ fn _softcbf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add("SimulationError", py.get_type::<errors::SimulationError>())?;
     m.add_class::<robot::Robot>()?;
-    m.add_class::<robot::Model>()?;
+    m.add_class::<robot::PyModel>()?;
     m.add_class::<controller::Controller>()?;
     m.add_class::<simulate::SimulationResult>()?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;

@@ -1,5 +1,5 @@
-//! `softcbf.Robot` (a checked robot file) and `softcbf.Model` (the robot joined to its
-//! generated functions, evaluated at a state as `softcbf model` prints it).
+//! `softcbf.Robot` (a checked robot file) and `softcbf.Model` (the robot joined to its model
+//! functions, compiled or else interpreted with a warning, evaluated as `softcbf model` does).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -12,7 +12,9 @@ use softcbf::record::Columns;
 use softcbf_description::domain;
 
 use crate::convert::{finite_vector, json_to_python};
-use crate::errors::{file_error, model_error, value_error};
+use softcbf::model::{Model, ModelError};
+
+use crate::errors::{file_error, interpreted_warning, model_error, value_error};
 
 /// A robot file, read and checked: modules, plates, limits, obstacles, gains, hardware.
 ///
@@ -24,11 +26,32 @@ pub struct Robot {
 }
 
 impl Robot {
-    /// The model of this robot, or the exception saying how to build one.
-    pub fn build_model(&self) -> PyResult<Arc<softcbf::model::Model>> {
-        softcbf::model::Model::new(self.robot.clone())
-            .map(Arc::new)
-            .map_err(|e| model_error(&e))
+    /// The model of this robot; see [`build_model`].
+    pub fn build_model(&self, py: Python<'_>, interpreted: bool) -> PyResult<Arc<Model>> {
+        build_model(py, self.robot.clone(), interpreted)
+    }
+}
+
+/// The model of `robot`: its compiled model if this build has one; else, with
+/// `interpreted`, the model interpreted at run time (`softcbf_generated::interpreted`),
+/// with a `RuntimeWarning` that says so, what it costs and how to build compiled code;
+/// else `NoGeneratedModelError` with that command.
+pub fn build_model(
+    py: Python<'_>,
+    robot: softcbf_description::robot::Robot,
+    interpreted: bool,
+) -> PyResult<Arc<Model>> {
+    match Model::new(robot.clone()) {
+        Ok(model) => Ok(Arc::new(model)),
+        Err(error @ ModelError::NoGeneratedModel { .. }) if interpreted => {
+            interpreted_warning(py, &error)?;
+            let structure = robot.structure();
+            let generated = py.detach(|| softcbf_generated::interpreted(&structure));
+            Model::with_generated(robot, generated)
+                .map(Arc::new)
+                .map_err(|e| model_error(&e))
+        }
+        Err(error) => Err(model_error(&error)),
     }
 }
 
@@ -80,11 +103,14 @@ impl Robot {
         softcbf::record::coordinate_names(3 * self.robot.modules.len())
     }
 
-    /// The robot joined to its generated model (`NoGeneratedModelError` if this build has
-    /// none for its structure).
-    fn model(&self) -> PyResult<Model> {
-        Ok(Model {
-            model: self.build_model()?,
+    /// The robot joined to its generated model. A structure this build has no compiled
+    /// model for gets its model interpreted at run time (same values, several times slower)
+    /// with a `RuntimeWarning` giving the command that builds compiled code; with
+    /// `interpreted=False` it raises `NoGeneratedModelError` with that command instead.
+    #[pyo3(signature = (*, interpreted=true))]
+    fn model(&self, py: Python<'_>, interpreted: bool) -> PyResult<PyModel> {
+        Ok(PyModel {
+            model: self.build_model(py, interpreted)?,
         })
     }
 
@@ -99,13 +125,13 @@ impl Robot {
 }
 
 /// A robot joined to its generated functions: barriers, Jacobians and dynamics at any state.
-#[pyclass(module = "softcbf", frozen)]
-pub struct Model {
-    pub model: Arc<softcbf::model::Model>,
+#[pyclass(module = "softcbf", name = "Model", frozen)]
+pub struct PyModel {
+    pub model: Arc<Model>,
 }
 
 #[pymethods]
-impl Model {
+impl PyModel {
     /// Number of coordinates.
     #[getter]
     fn nq(&self) -> usize {
@@ -118,10 +144,17 @@ impl Model {
         self.model.nb()
     }
 
-    /// The generated model's name (the structure it was generated for).
+    /// The generated model's name (the structure it was generated for), `"interpreted"`
+    /// for a model interpreted at run time.
     #[getter]
     fn generated_model(&self) -> &'static str {
         self.model.generated.name()
+    }
+
+    /// Whether the model is interpreted at run time rather than compiled code.
+    #[getter]
+    fn interpreted(&self) -> bool {
+        self.model.generated.name() == "interpreted"
     }
 
     /// Each barrier's label, in the order of the barrier arrays (`module 1 corner 1`, …).

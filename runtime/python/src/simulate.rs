@@ -19,8 +19,9 @@ use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{Run, simulate as run_simulation};
 
 use crate::convert::{dict_to_toml, finite_vector, json_to_python};
-use crate::errors::{SimulationError, file_error, model_error, value_error};
+use crate::errors::{SimulationError, file_error, value_error};
 use crate::robot::Robot;
+use crate::robot::build_model;
 
 /// The scenario argument: None (the paper's), a path, or a dict in the scenario format.
 fn scenario_file(py: Python<'_>, scenario: Option<&Bound<'_, PyAny>>) -> PyResult<ScenarioFile> {
@@ -99,7 +100,7 @@ pub fn simulate(
             .and_then(|robot| robot.map_or_else(|| load_robot(None), Ok))
             .map_err(|e| file_error(py, &e))?,
     };
-    let model = Arc::new(Model::new(robot).map_err(|e| model_error(&e))?);
+    let model = build_model(py, robot, true)?;
     let nq = model.nq();
     let set_point = set_point
         .map(|v| finite_vector(v, "set_point", nq).map(|v| v.as_slice().to_vec()))

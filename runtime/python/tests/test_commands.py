@@ -1,5 +1,5 @@
 """`verify` and `identify` from Python: the command's outputs, byte for byte, and its
-errors as exceptions; a robot this build has no model for."""
+errors as exceptions; a robot this build has no compiled model for, run interpreted."""
 
 import numpy as np
 import pytest
@@ -46,23 +46,73 @@ def test_identify_errors_are_exceptions(root, tmp_path):
                          tmp_path / "identified.toml", timing_uncertainty_ms=-1.0)
 
 
-def test_a_robot_without_a_generated_model_says_how_to_build_one(root, tmp_path):
-    # The paper's robot with a third module: a structure no build has.
+def three_modules(root, tmp_path):
+    """The paper's robot with a third module: a structure no build has compiled."""
     text = (root / "robots" / "paper-sim.toml").read_text()
     first = text.index("[[module]]")
     end = text.find("[[module]]", first + 1)
     module = text[first:end]
     robot_file = tmp_path / "three modules.toml"
     robot_file.write_text(text[:end] + module + text[end:])
-    robot = softcbf.Robot.load(robot_file)
-    assert robot.modules == 3 and robot.nq == 9
-    with pytest.raises(softcbf.NoGeneratedModelError) as caught:
-        robot.model()
-    message = str(caught.value)
+    return robot_file
+
+
+def interpreted_warning(caught, robot_file):
+    """The one warning of a call that built the interpreted model: what, what it costs, how
+    to build compiled code."""
+    warnings = [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert len(warnings) == 1, [str(w.message) for w in warnings]
+    message = str(warnings[0].message)
+    assert "interpreted at run time" in message and "times slower" in message
     assert "SOFTCBF_ROBOTS=" in message and "pip install --force-reinstall" in message
     assert "'" + str(robot_file) + "'" in message  # quoted: the name has a space
     assert "paper_sim" in message
-    with pytest.raises(softcbf.NoGeneratedModelError):
-        softcbf.Controller(robot)
-    with pytest.raises(softcbf.NoGeneratedModelError):
-        softcbf.simulate(robot=robot)
+    return message
+
+
+def test_a_robot_without_a_generated_model_runs_interpreted_and_says_how_to_build_one(
+        root, tmp_path):
+    robot_file = three_modules(root, tmp_path)
+    robot = softcbf.Robot.load(robot_file)
+    assert robot.modules == 3 and robot.nq == 9
+
+    with pytest.warns(RuntimeWarning) as caught:
+        model = robot.model()
+    interpreted_warning(caught, robot_file)
+    assert model.interpreted and model.generated_model == "interpreted"
+    assert model.nq == 9 and model.nb == 18
+    # The barrier Jacobian against central differences of the barriers.
+    q = np.array([0.004, -0.002, 0.001, -0.003, 0.001, -0.002, 0.002, 0.003, 0.0])
+    qd = np.array([0.01, -0.02, 0.005, 0.0, 0.01, -0.01, 0.02, 0.0, 0.01])
+    values = model.evaluate(q, qd)
+    jacobian = values["barrier_jacobian"]
+    assert jacobian.shape == (18, 9) and np.all(np.isfinite(values["mass_matrix"]))
+    h = 1e-6
+    for k in range(9):
+        step = np.zeros(9)
+        step[k] = h
+        difference = (model.evaluate(q + step, qd)["barriers"]
+                      - model.evaluate(q - step, qd)["barriers"]) / (2 * h)
+        np.testing.assert_allclose(jacobian[:, k], difference, rtol=1e-6, atol=1e-8)
+
+    # Compiled code demanded: the exception with the command that builds it.
+    with pytest.raises(softcbf.NoGeneratedModelError) as refused:
+        robot.model(interpreted=False)
+    message = str(refused.value)
+    assert "SOFTCBF_ROBOTS=" in message and "pip install --force-reinstall" in message
+    assert "'" + str(robot_file) + "'" in message
+
+    with pytest.warns(RuntimeWarning) as caught:
+        controller = softcbf.Controller(robot, safety="paper")
+    interpreted_warning(caught, robot_file)
+    tau, status = controller.tick(q, qd, np.zeros(9))
+    assert tau.shape == (9,) and np.all(np.isfinite(tau)) and status in softcbf.STATUSES
+
+    with pytest.warns(RuntimeWarning) as caught:
+        run = softcbf.simulate({"duration": 0.05, "safety": "paper",
+                                "initial": {"q": [0.0] * 9, "qd": [0.0] * 9},
+                                "reference": {"set_point": [0.02, 0.0, -0.01] * 3}},
+                               robot=robot)
+    interpreted_warning(caught, robot_file)
+    assert run.q.shape[1] == 9 and run.t[-1] == pytest.approx(0.05)
+    assert np.all(np.isfinite(run.q)) and np.all(np.isfinite(run.barriers))

@@ -26,8 +26,9 @@ class DescriptionError(ValueError):
     """The field at fault (``module[2].mass``), or None for a syntax error."""
 
 class NoGeneratedModelError(RuntimeError):
-    """The robot's structure has no generated model in this build; the message gives the
-    command that builds the package with one."""
+    """The robot's structure has no compiled model in this build and the interpreted one
+    was refused (``Robot.model(interpreted=False)``); the message gives the command that
+    builds the package with one."""
 
 class SimulationError(RuntimeError):
     """A simulation that could not run (integrator failure, plant of another structure)."""
@@ -57,9 +58,12 @@ class Robot:
     @property
     def coordinate_names(self) -> List[str]:
         """``dx1``, ``dy1``, ``dL1``, ``dx2``, …"""
-    def model(self) -> Model:
-        """The robot joined to its generated model (``NoGeneratedModelError`` if this
-        build has none for its structure)."""
+    def model(self, *, interpreted: bool = True) -> Model:
+        """The robot joined to its generated model. A structure this build has no
+        compiled model for gets its model interpreted at run time (the same numbers,
+        about 25 times slower per evaluation, a tick 2–3 times) with a ``RuntimeWarning``
+        that gives the command building compiled code; with ``interpreted=False`` that is
+        a ``NoGeneratedModelError`` instead."""
 
 class Model:
     """A robot joined to its generated functions."""
@@ -72,7 +76,10 @@ class Model:
         """Number of barriers."""
     @property
     def generated_model(self) -> str:
-        """The generated model's name."""
+        """The generated model's name (``"interpreted"`` for one run at run time)."""
+    @property
+    def interpreted(self) -> bool:
+        """Whether the model is interpreted at run time rather than compiled code."""
     @property
     def barrier_labels(self) -> List[str]:
         """Each barrier's label, in the order of the barrier arrays."""
@@ -102,7 +109,8 @@ class Controller:
         """Gains default to the robot file's, else the paper's (K_P = 5 I, K_D = I,
         p1 = p2 = 10); ``safety`` to the robot file's ``[hardware] safety``, else
         ``"sampled"`` over a hold of ``control_period`` seconds. Every number is checked
-        against the range of its file field (``ValueError``)."""
+        against the range of its file field (``ValueError``). A robot without a compiled
+        model runs on its interpreted one, with a ``RuntimeWarning`` (see ``Robot.model``)."""
     def tick(
         self,
         q: _Vector,
@@ -190,7 +198,8 @@ def simulate(
 ) -> SimulationResult:
     """Simulates the safe controller on a scenario (a file, a dict in the scenario
     format, or None for the paper's), the keywords overriding it as the command line's
-    options do. The GIL is released while it runs."""
+    options do. The GIL is released while it runs. A robot without a compiled model
+    runs on its interpreted one, with a ``RuntimeWarning`` (see ``Robot.model``)."""
 
 def generated_models() -> List[str]:
     """The generated models this build has."""
