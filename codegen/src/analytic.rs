@@ -50,6 +50,7 @@
 
 use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{format_ident, quote};
+use softcbf_interval::{Dual, Interval};
 
 /// Switch points `U_k` for derivative orders `k = 0..=MAX_ORDER` (non-decreasing, so a
 /// closed form at order k only ever uses closed forms of lower orders).
@@ -64,6 +65,123 @@ pub const MAX_ORDER: usize = 6;
 /// Identifier of the emitted function for derivative orders 0..=order, e.g. `pcc_fs_fc_3`.
 pub fn function_ident(order: usize) -> Ident {
     format_ident!("pcc_fs_fc_{}", order)
+}
+
+/// Identifier of the emitted enclosure for derivative orders 0..=order, e.g.
+/// `pcc_fs_fc_3_interval`.
+pub fn interval_function_ident(order: usize) -> Ident {
+    format_ident!("pcc_fs_fc_{}_interval", order)
+}
+
+/// Identifier of the emitted jet version for derivative orders 0..=order, e.g.
+/// `pcc_fs_fc_2_dual`.
+pub fn dual_function_ident(order: usize) -> Ident {
+    format_ident!("pcc_fs_fc_{}_dual", order)
+}
+
+/// Emits `pub fn pcc_fs_fc_<order>_dual(u: Dual) -> ([Dual; order+1], [Dual; order+1])`:
+/// values from the enclosures of `pcc_fs_fc_<order+1>_interval`, slopes by the chain rule
+/// (`f^(j)′ = f^(j+1) u′`). Needs the enclosure of order `order + 1`.
+pub fn emit_dual(order: usize) -> TokenStream {
+    let name = dual_function_ident(order);
+    let enclosure = interval_function_ident(order + 1);
+    let len = Literal::usize_unsuffixed(order + 1);
+    let doc = format!(
+        " Jets of `[f_s, …, f_s^({order})]`, `[f_c, …, f_c^({order})]` at `u`: values and the \
+         chain rule's slopes from the enclosures of order {}.",
+        order + 1
+    );
+    quote! {
+        #[doc = #doc]
+        pub fn #name(u: Dual) -> ([Dual; #len], [Dual; #len]) {
+            let (s, c) = #enclosure(u.value);
+            (
+                std::array::from_fn(|j| Dual::new(s[j], s[j + 1] * u.slope)),
+                std::array::from_fn(|j| Dual::new(c[j], c[j + 1] * u.slope)),
+            )
+        }
+    }
+}
+
+/// `|f_s^(j)(0)| = j!/(2j+1)!` (`fc = false`) or `|f_c^(j)(0)| = j!/(2j+2)!` (`fc = true`).
+///
+/// These bound the derivatives on the whole domain: `f_s(u) = ∫₀¹ c(s²u) ds` and
+/// `f_c(u) = ∫₀¹ (1 − s) c(s²u) ds` with `c(w) = cos √w`, so
+/// `f^(j)(u) = ∫ s^{2j} c^(j)(s²u) (…) ds`, and `c^(j)(w)` is a constant times
+/// `J_{j−1/2}(√w)/√w^{j−1/2}`, whose magnitude on `w ≥ 0` is largest at `w = 0`
+/// (`|J_ν(x)| ≤ |x/2|^ν/Γ(ν+1)` for `ν ≥ −1/2`). Hence `|f^(j)(u)| ≤ |f^(j)(0)|` for all
+/// `u ≥ 0` (docs/model.md §5).
+pub fn derivative_bound(j: usize, fc: bool) -> f64 {
+    let mut value = 1.0;
+    for n in 1..=j {
+        value *= n as f64;
+    }
+    let top = 2 * j + 1 + usize::from(fc);
+    for n in 1..=top {
+        value /= n as f64;
+    }
+    value
+}
+
+/// Relative and absolute accuracy of the `f64` functions `pcc_fs_fc_<k>` (docs/model.md
+/// §8: measured within 0.27 of `1e-14 |f| + 1e-15 |f^(k)(0)|`; taken at twice the bound).
+pub const ACCURACY_RELATIVE: f64 = 2e-14;
+/// See [`ACCURACY_RELATIVE`]: the part in units of `|f^(k)(0)|`.
+pub const ACCURACY_ABSOLUTE: f64 = 2e-15;
+
+/// Emits `pub fn pcc_fs_fc_<order>_interval(u: Interval) -> ([Interval; order+1],
+/// [Interval; order+1])`: enclosures of `f_s^(k)`, `f_c^(k)` over the part of `u` at or
+/// above zero (the argument is `θ² ≥ 0`, so a lower bound below zero is widening only).
+/// Mean-value form around the midpoint `m`: `f^(k)(m) ± (|f^(k+1)(0)| r + e_k)` with `r`
+/// the radius, [`derivative_bound`] for the slope and `e_k` the `f64` evaluation's accuracy
+/// ([`ACCURACY_RELATIVE`]), and within `±|f^(k)(0)|`. An unbounded or invalid `u` gives
+/// [`Interval::ENTIRE`]-wide or invalid entries.
+pub fn emit_interval(order: usize) -> TokenStream {
+    let name = interval_function_ident(order);
+    let point = function_ident(order);
+    let len = Literal::usize_unsuffixed(order + 1);
+    let bounds = |fc: bool| -> Vec<Literal> {
+        (0..=order + 1)
+            .map(|j| float(derivative_bound(j, fc)))
+            .collect()
+    };
+    let (s0, c0) = (bounds(false), bounds(true));
+    let bound_len = Literal::usize_unsuffixed(order + 2);
+    let (rel, abs) = (float(ACCURACY_RELATIVE), float(ACCURACY_ABSOLUTE));
+    let doc = format!(
+        " Enclosures of `[f_s, …, f_s^({order})]`, `[f_c, …, f_c^({order})]` over `u ≥ 0` in \
+         the interval `u` (mean-value form around the midpoint with the global derivative \
+         bounds `|f^(j)(u)| ≤ |f^(j)(0)|`)."
+    );
+    quote! {
+        #[doc = #doc]
+        pub fn #name(u: Interval) -> ([Interval; #len], [Interval; #len]) {
+            const S0: [f64; #bound_len] = [#(#s0),*];
+            const C0: [f64; #bound_len] = [#(#c0),*];
+            if !u.is_valid() || u.hi() < 0.0 {
+                return ([Interval::NAN; #len], [Interval::NAN; #len]);
+            }
+            if !u.hi().is_finite() {
+                let whole = |j: usize, b: &[f64]| Interval::new(-b[j], b[j]);
+                return (
+                    std::array::from_fn(|j| whole(j, &S0)),
+                    std::array::from_fn(|j| whole(j, &C0)),
+                );
+            }
+            let range = Interval::new(u.lo().max(0.0), u.hi());
+            let (m, r) = (range.mid(), range.rad());
+            let (fs, fc) = #point(m);
+            let enclose = |value: f64, j: usize, b: &[f64]| {
+                let slack = b[j + 1] * r + #rel * value.abs() + #abs * b[j];
+                let around = Interval::around(value, slack);
+                Interval::new(around.lo().max(-b[j]), around.hi().min(b[j]))
+            };
+            (
+                std::array::from_fn(|j| enclose(fs[j], j, &S0)),
+                std::array::from_fn(|j| enclose(fc[j], j, &C0)),
+            )
+        }
+    }
 }
 
 /// Emits `#[inline] pub fn pcc_fs_fc_<order>(u: f64) -> ([f64; order+1], [f64; order+1])`
@@ -176,6 +294,71 @@ pub fn evaluate(order: usize, u: f64) -> ([f64; MAX_ORDER + 1], [f64; MAX_ORDER 
             fs[k] = (-(0.5 * fs[k - 2]) - odd * fs[k - 1]) * (0.5 * inv);
             fc[k] = (0.5 * fs[k - 1] - k as f64 * fc[k - 1]) * inv;
         }
+    }
+    (fs, fc)
+}
+
+/// The enclosures of the emitted `pcc_fs_fc_<order>_interval` ([`emit_interval`]) computed
+/// at run time the same way, from [`evaluate`] at the midpoint: `([f_s, …], [f_c, …])` with
+/// entries past `order` zero. For the interpreter's interval functions.
+pub fn evaluate_interval(
+    order: usize,
+    u: Interval,
+) -> ([Interval; MAX_ORDER + 1], [Interval; MAX_ORDER + 1]) {
+    let (mut fs, mut fc) = (
+        [Interval::ZERO; MAX_ORDER + 1],
+        [Interval::ZERO; MAX_ORDER + 1],
+    );
+    if !u.is_valid() || u.hi() < 0.0 {
+        fs[..=order].fill(Interval::NAN);
+        fc[..=order].fill(Interval::NAN);
+        return (fs, fc);
+    }
+    if !u.hi().is_finite() {
+        for j in 0..=order {
+            let (s, c) = (derivative_bound(j, false), derivative_bound(j, true));
+            fs[j] = Interval::new(-s, s);
+            fc[j] = Interval::new(-c, c);
+        }
+        return (fs, fc);
+    }
+    let range = Interval::new(u.lo().max(0.0), u.hi());
+    let (m, r) = (range.mid(), range.rad());
+    let (point_s, point_c) = evaluate(order, m);
+    let enclose = |value: f64, j: usize, fc: bool| {
+        let (b, slope) = (derivative_bound(j, fc), derivative_bound(j + 1, fc));
+        let slack = slope * r + ACCURACY_RELATIVE * value.abs() + ACCURACY_ABSOLUTE * b;
+        let around = Interval::around(value, slack);
+        Interval::new(around.lo().max(-b), around.hi().min(b))
+    };
+    for j in 0..=order {
+        fs[j] = enclose(point_s[j], j, false);
+        fc[j] = enclose(point_c[j], j, true);
+    }
+    (fs, fc)
+}
+
+/// The jets of the emitted `pcc_fs_fc_<order>_dual` ([`emit_dual`]) computed at run time:
+/// values and slopes from [`evaluate_interval`] of order `order + 1`.
+pub fn evaluate_dual(order: usize, u: Dual) -> ([Dual; MAX_ORDER + 1], [Dual; MAX_ORDER + 1]) {
+    let (mut fs, mut fc) = (
+        [Dual::default(); MAX_ORDER + 1],
+        [Dual::default(); MAX_ORDER + 1],
+    );
+    let (s, c) = evaluate_interval((order + 1).min(MAX_ORDER), u.value);
+    for j in 0..=order {
+        // Past the measured orders the slope's bound is the global one.
+        let (next_s, next_c) = if j < MAX_ORDER {
+            (s[j + 1], c[j + 1])
+        } else {
+            let (bs, bc) = (
+                derivative_bound(j + 1, false),
+                derivative_bound(j + 1, true),
+            );
+            (Interval::new(-bs, bs), Interval::new(-bc, bc))
+        };
+        fs[j] = Dual::new(s[j], next_s * u.slope);
+        fc[j] = Dual::new(c[j], next_c * u.slope);
     }
     (fs, fc)
 }

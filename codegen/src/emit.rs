@@ -31,6 +31,25 @@ pub struct FunctionSpec {
     pub outputs: Vec<(TokenStream, Id)>,
     /// Statements run after the outputs are written.
     pub epilogue: TokenStream,
+    /// The number type the function computes in.
+    pub scalar: Scalar,
+}
+
+/// The number type of an emitted function.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scalar {
+    /// `f64` throughout (every temporary typed `f64`).
+    F64,
+    /// Enclosures: inputs bound from interval arrays (`softcbf_interval::Interval`) stay
+    /// intervals, parameters stay `f64`, temporaries take the type their operands give
+    /// (the interval operators accept `f64` on either side), `f_s`, `f_c` come from the
+    /// `pcc_fs_fc_<k>_interval` enclosures and every output is written as an interval.
+    /// Encloses the `f64` function's exact value over any point of the input boxes.
+    Interval,
+    /// Jets of intervals (`softcbf_interval::Dual`): as [`Scalar::Interval`], and each value
+    /// carries an enclosure of its derivative along the direction the inputs' slopes give
+    /// (`pcc_fs_fc_<k>_dual`, outputs written as jets).
+    Dual,
 }
 
 /// An emitted function with its operation count and the analytic orders it calls.
@@ -397,7 +416,10 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
         let source = bound
             .get(symbol)
             .unwrap_or_else(|| panic!("symbol `{name}` has no input binding"));
-        body.extend(quote!(let #name: f64 = #source;));
+        body.extend(match spec.scalar {
+            Scalar::F64 => quote!(let #name: f64 = #source;),
+            Scalar::Interval | Scalar::Dual => quote!(let #name = #source;),
+        });
     }
 
     let mut analytic_orders = BTreeSet::new();
@@ -410,7 +432,11 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
             let names = (format_ident!("fs_{}", k), format_ident!("fc_{}", k));
             let max_order = usize::from(program.analytic_orders[&arg]);
             analytic_orders.insert(max_order);
-            let function = analytic::function_ident(max_order);
+            let function = match spec.scalar {
+                Scalar::F64 => analytic::function_ident(max_order),
+                Scalar::Interval => analytic::interval_function_ident(max_order),
+                Scalar::Dual => analytic::dual_function_ident(max_order),
+            };
             let argument = plan.read(arg).tokens;
             let (fs, fc) = &names;
             body.extend(quote!(let (#fs, #fc) = #function(#argument);));
@@ -422,12 +448,19 @@ pub fn emit_function(arena: &Arena, spec: &FunctionSpec) -> Emitted {
         }
         let value = plan.expression(id).tokens;
         let t = format_ident!("t{}", plan.temps.len());
-        body.extend(quote!(let #t: f64 = #value;));
+        body.extend(match spec.scalar {
+            Scalar::F64 => quote!(let #t: f64 = #value;),
+            Scalar::Interval | Scalar::Dual => quote!(let #t = #value;),
+        });
         plan.temps.insert(id, t);
     }
     for (place, id) in &spec.outputs {
         let value = plan.read(*id).tokens;
-        body.extend(quote!(#place = #value;));
+        body.extend(match spec.scalar {
+            Scalar::F64 => quote!(#place = #value;),
+            Scalar::Interval => quote!(#place = Interval::from(#value);),
+            Scalar::Dual => quote!(#place = Dual::from(#value);),
+        });
     }
     let epilogue = &spec.epilogue;
     let name = &spec.name;

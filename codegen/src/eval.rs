@@ -1,5 +1,6 @@
-//! A scheduled program evaluated on f64 at run time: what the interpreter of the generated
-//! model runs when a structure was not compiled in, step for step as the emitted code.
+//! A scheduled program evaluated on f64 (or on intervals) at run time: what the interpreter
+//! of the generated model runs when a structure was not compiled in, step for step as the
+//! emitted code.
 //!
 //! [`Compiled`] flattens a [`crate::program::schedule`] into numbered value slots once; each
 //! evaluation then copies the constants and inputs into a caller's buffer and runs the
@@ -8,10 +9,108 @@
 //! rewrites are exact (`a + (−b)` is `a − b`), so the results are the emitted code's bits.
 
 use std::collections::HashMap;
+use std::ops::{Add, Div, Mul, Neg};
+
+use softcbf_interval::{Dual, Interval};
 
 use crate::analytic;
 use crate::expr::{Analytic, Arena, Id, Node};
 use crate::program::schedule;
+
+/// A number type a program runs on: `f64` (the emitted code's bits) or [`Interval`]
+/// (enclosures, as the emitted `*_interval` functions compute them).
+pub trait Value:
+    Copy + From<f64> + Add<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
+{
+    /// `√x`.
+    fn sqrt(self) -> Self;
+    /// `sin x`.
+    fn sin(self) -> Self;
+    /// `cos x`.
+    fn cos(self) -> Self;
+    /// `x^n` for the exponents the emitter writes as a call.
+    fn powi(self, n: i32) -> Self;
+    /// `f_s`, `f_c` and their derivatives up to `order` at `u` (entries past `order` unused).
+    fn analytic(
+        order: usize,
+        u: Self,
+    ) -> (
+        [Self; analytic::MAX_ORDER + 1],
+        [Self; analytic::MAX_ORDER + 1],
+    );
+}
+
+impl Value for f64 {
+    fn sqrt(self) -> f64 {
+        f64::sqrt(self)
+    }
+    fn sin(self) -> f64 {
+        f64::sin(self)
+    }
+    fn cos(self) -> f64 {
+        f64::cos(self)
+    }
+    fn powi(self, n: i32) -> f64 {
+        f64::powi(self, n)
+    }
+    fn analytic(
+        order: usize,
+        u: f64,
+    ) -> (
+        [f64; analytic::MAX_ORDER + 1],
+        [f64; analytic::MAX_ORDER + 1],
+    ) {
+        analytic::evaluate(order, u)
+    }
+}
+
+impl Value for Interval {
+    fn sqrt(self) -> Interval {
+        Interval::sqrt(self)
+    }
+    fn sin(self) -> Interval {
+        Interval::sin(self)
+    }
+    fn cos(self) -> Interval {
+        Interval::cos(self)
+    }
+    fn powi(self, n: i32) -> Interval {
+        Interval::powi(self, n)
+    }
+    fn analytic(
+        order: usize,
+        u: Interval,
+    ) -> (
+        [Interval; analytic::MAX_ORDER + 1],
+        [Interval; analytic::MAX_ORDER + 1],
+    ) {
+        analytic::evaluate_interval(order, u)
+    }
+}
+
+impl Value for Dual {
+    fn sqrt(self) -> Dual {
+        Dual::sqrt(self)
+    }
+    fn sin(self) -> Dual {
+        Dual::sin(self)
+    }
+    fn cos(self) -> Dual {
+        Dual::cos(self)
+    }
+    fn powi(self, n: i32) -> Dual {
+        Dual::powi(self, n)
+    }
+    fn analytic(
+        order: usize,
+        u: Dual,
+    ) -> (
+        [Dual; analytic::MAX_ORDER + 1],
+        [Dual; analytic::MAX_ORDER + 1],
+    ) {
+        analytic::evaluate_dual(order, u)
+    }
+}
 
 /// One step: an operation on value slots, its result written at `dst`.
 #[derive(Clone, Copy, Debug)]
@@ -167,10 +266,12 @@ impl Compiled {
     /// # Panics
     ///
     /// If the inputs do not add up to the number of input symbols or `values` is short.
-    pub fn run(&self, inputs: &[&[f64]], values: &mut [f64]) {
+    pub fn run<T: Value>(&self, inputs: &[&[T]], values: &mut [T]) {
         let values = &mut values[..self.slots];
         let (constants, rest) = values.split_at_mut(self.constants.len());
-        constants.copy_from_slice(&self.constants);
+        for (slot, &c) in constants.iter_mut().zip(&self.constants) {
+            *slot = T::from(c);
+        }
         let mut at = 0;
         for group in inputs {
             rest[at..at + group.len()].copy_from_slice(group);
@@ -190,7 +291,7 @@ impl Compiled {
                         2 => x * x,
                         3 => x * x * x,
                         4 => (x * x) * (x * x),
-                        -1 => 1.0 / x,
+                        -1 => T::from(1.0) / x,
                         _ => x.powi(n),
                     }
                 }
@@ -199,7 +300,7 @@ impl Compiled {
                 Op::Cos(a) => v(a).cos(),
                 Op::Analytic(arg, order) => {
                     let order = usize::from(order);
-                    let (fs, fc) = analytic::evaluate(order, v(arg));
+                    let (fs, fc) = T::analytic(order, v(arg));
                     let dst = dst as usize;
                     values[dst..=dst + order].copy_from_slice(&fs[..=order]);
                     values[dst + order + 1..=dst + 2 * order + 1].copy_from_slice(&fc[..=order]);
@@ -210,13 +311,13 @@ impl Compiled {
         }
     }
 
-    /// Output `k` of the last [`Compiled::run`] on `values`.
-    pub fn output(&self, values: &[f64], k: usize) -> f64 {
+    /// Output `k` after [`Compiled::run`] filled `values`.
+    pub fn output<T: Copy>(&self, values: &[T], k: usize) -> T {
         values[self.outputs[k] as usize]
     }
 
-    /// Every output of the last [`Compiled::run`] on `values`, in order.
-    pub fn output_values<'a>(&'a self, values: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
+    /// Every output in order after [`Compiled::run`] filled `values`.
+    pub fn output_values<'a, T: Copy>(&'a self, values: &'a [T]) -> impl Iterator<Item = T> + 'a {
         self.outputs.iter().map(|&s| values[s as usize])
     }
 }

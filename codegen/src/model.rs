@@ -6,7 +6,7 @@ use quote::{format_ident, quote};
 
 use crate::analytic;
 use crate::diff::{Differentiator, Tangent};
-use crate::emit::{FunctionSpec, emit_function, format_file};
+use crate::emit::{FunctionSpec, Scalar, emit_function, format_file};
 use crate::expr::{Arena, Id};
 use crate::layout::{Param, param_layout};
 use crate::program::OpCount;
@@ -680,6 +680,7 @@ impl SymbolicModel {
         let mut functions = Vec::new();
         let mut ops = Vec::new();
         let mut orders = std::collections::BTreeSet::new();
+        let mut interval_emitted = Vec::new();
         let mut push = |name: &str, emitted: crate::emit::Emitted| {
             ops.push((name.to_string(), emitted.ops));
             orders.extend(emitted.analytic_orders);
@@ -701,6 +702,7 @@ impl SymbolicModel {
                     transform[3] = [0.0, 0.0, 0.0, 1.0];
                 }
             },
+            scalar: Scalar::F64,
         };
         push("segment_transforms", emit_function(&self.arena, &spec));
 
@@ -725,6 +727,7 @@ impl SymbolicModel {
             inputs: self.bindings(false),
             outputs,
             epilogue: TokenStream::new(),
+            scalar: Scalar::F64,
         };
         push("barriers", emit_function(&self.arena, &spec));
 
@@ -754,6 +757,7 @@ impl SymbolicModel {
             inputs: self.bindings(true),
             outputs: barrier_outputs.clone(),
             epilogue: TokenStream::new(),
+            scalar: Scalar::F64,
         };
         push("barrier_terms", emit_function(&self.arena, &spec));
 
@@ -770,6 +774,7 @@ impl SymbolicModel {
             inputs: self.bindings(true),
             outputs: joint_outputs.clone(),
             epilogue: TokenStream::new(),
+            scalar: Scalar::F64,
         };
         push("joint_terms", emit_function(&self.arena, &spec));
 
@@ -784,10 +789,94 @@ impl SymbolicModel {
             ],
             args: quote!(#state_args, #joint_args, #barrier_args),
             inputs: self.bindings(true),
-            outputs: joint_outputs.into_iter().chain(barrier_outputs).collect(),
+            outputs: joint_outputs
+                .iter()
+                .cloned()
+                .chain(barrier_outputs.iter().cloned())
+                .collect(),
             epilogue: TokenStream::new(),
+            scalar: Scalar::F64,
         };
         push("model_terms", emit_function(&self.arena, &spec));
+
+        let dual_joint_outputs = joint_outputs.clone();
+        // Enclosures over boxes of states: the certified filter's remainder bounds
+        // (docs/model.md §5). Parameters stay numbers; q and q̇ are intervals.
+        let interval_state_args = quote!(p: &[f64; NP], q: &[Interval; NQ], qd: &[Interval; NQ]);
+        let spec = FunctionSpec {
+            name: format_ident!("barrier_terms_interval"),
+            doc: vec![
+                " Enclosures of [`barrier_terms`]' outputs over every state in the boxes `q`, `q̇`."
+                    .into(),
+            ],
+            args: quote!(
+                #interval_state_args,
+                barriers: &mut [Interval; NB],
+                jacobian: &mut [[Interval; NQ]; NB],
+                jdot_qd: &mut [Interval; NB]
+            ),
+            inputs: self.bindings(true),
+            outputs: barrier_outputs,
+            epilogue: TokenStream::new(),
+            scalar: Scalar::Interval,
+        };
+        interval_emitted.push(("barrier_terms_interval", emit_function(&self.arena, &spec)));
+        let spec = FunctionSpec {
+            name: format_ident!("joint_terms_interval"),
+            doc: vec![
+                " Enclosures of [`joint_terms`]' outputs over every state in the boxes `q`, `q̇`."
+                    .into(),
+            ],
+            args: quote!(
+                #interval_state_args,
+                rotation: &mut [[[Interval; 3]; 3]; N_MODULES],
+                translation: &mut [[Interval; 3]; N_MODULES],
+                motion_subspace: &mut [[[Interval; 3]; 6]; N_MODULES],
+                bias_acceleration: &mut [[Interval; 6]; N_MODULES]
+            ),
+            inputs: self.bindings(true),
+            outputs: joint_outputs.clone(),
+            epilogue: TokenStream::new(),
+            scalar: Scalar::Interval,
+        };
+        interval_emitted.push(("joint_terms_interval", emit_function(&self.arena, &spec)));
+        let spec = FunctionSpec {
+            name: format_ident!("joint_terms_dual"),
+            doc: vec![
+                " Jets of [`joint_terms`]' outputs: enclosures over every state in the boxes"
+                    .into(),
+                " `q`, `q̇` (the jets' values) and of their derivatives along the jets' slopes."
+                    .into(),
+            ],
+            args: quote!(
+                p: &[f64; NP],
+                q: &[Dual; NQ],
+                qd: &[Dual; NQ],
+                rotation: &mut [[[Dual; 3]; 3]; N_MODULES],
+                translation: &mut [[Dual; 3]; N_MODULES],
+                motion_subspace: &mut [[[Dual; 3]; 6]; N_MODULES],
+                bias_acceleration: &mut [[Dual; 6]; N_MODULES]
+            ),
+            inputs: self.bindings(true),
+            outputs: dual_joint_outputs,
+            epilogue: TokenStream::new(),
+            scalar: Scalar::Dual,
+        };
+        let dual = emit_function(&self.arena, &spec);
+        let dual_orders: Vec<usize> = dual.analytic_orders.iter().copied().collect();
+        interval_emitted.push(("joint_terms_dual", dual));
+        let mut interval_orders = std::collections::BTreeSet::new();
+        for (name, emitted) in interval_emitted {
+            ops.push((name.to_string(), emitted.ops));
+            if name != "joint_terms_dual" {
+                interval_orders.extend(emitted.analytic_orders);
+            }
+            functions.push(emitted.tokens);
+        }
+        for &k in &dual_orders {
+            orders.insert(k + 1);
+            interval_orders.insert(k + 1);
+        }
 
         let plate_poses = quote! {
             /// World poses `W_i = T_1 ⋯ T_i` of every module's top plate (4×4, rows).
@@ -809,7 +898,11 @@ impl SymbolicModel {
             }
         };
 
-        let analytic_functions = orders.iter().map(|&k| analytic::emit(k));
+        let analytic_functions = orders
+            .iter()
+            .map(|&k| analytic::emit(k))
+            .chain(interval_orders.iter().map(|&k| analytic::emit_interval(k)))
+            .chain(dual_orders.iter().map(|&k| analytic::emit_dual(k)));
         let names = self.param_names.iter().map(String::as_str);
         let corners = self
             .structure
@@ -861,7 +954,7 @@ impl SymbolicModel {
             }
         });
         let tokens = quote! {
-            use crate::{BarrierInfo, BarrierKind, Point};
+            use crate::{BarrierInfo, BarrierKind, Dual, Interval, Point};
             /// Number of modules.
             pub const N_MODULES: usize = #n;
             /// Number of generalized coordinates (3 per module).

@@ -15,7 +15,7 @@ use softcbf_codegen::eval::Compiled;
 use softcbf_codegen::model::build;
 use softcbf_description::robot::{Routing, Structure};
 
-use crate::{BarrierInfo, GeneratedModel};
+use crate::{BarrierInfo, Dual, GeneratedModel, Interval};
 
 /// A structure's model run by the interpreter; see [`interpreted`].
 pub struct Interpreted {
@@ -37,6 +37,11 @@ thread_local! {
     /// The value slots of the program being run on this thread (the longest any program
     /// of any interpreted model needs, grown on first use).
     static VALUES: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
+    /// The interval functions' slots, and the parameters as point intervals.
+    static INTERVALS: RefCell<(Vec<Interval>, Vec<Interval>)> =
+        const { RefCell::new((Vec::new(), Vec::new())) };
+    /// The same for the jets.
+    static DUALS: RefCell<(Vec<Dual>, Vec<Dual>)> = const { RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Models built so far, one per structure key (leaked: they live as long as the process).
@@ -142,6 +147,68 @@ impl Interpreted {
 }
 
 /// `slice` with its length checked against `len` (as the compiled models check theirs).
+impl Interpreted {
+    /// [`Interpreted::run`] on jets: the parameters as constants, `q`, `q̇` as jets.
+    fn run_dual(
+        &self,
+        program: &Compiled,
+        p: &[f64],
+        q: &[Dual],
+        qd: &[Dual],
+        write: impl FnOnce(&mut dyn Iterator<Item = Dual>),
+    ) {
+        let nq = self.nq();
+        assert_eq!(
+            p.len(),
+            self.np,
+            "p: length {} instead of {}",
+            p.len(),
+            self.np
+        );
+        assert_eq!(q.len(), nq, "q: length {} instead of {nq}", q.len());
+        assert_eq!(qd.len(), nq, "qd: length {} instead of {nq}", qd.len());
+        DUALS.with_borrow_mut(|(values, params)| {
+            if values.len() < program.slots() {
+                values.resize(program.slots(), Dual::default());
+            }
+            params.clear();
+            params.extend(p.iter().map(|&x| Dual::from(x)));
+            program.run(&[&params[..], q, qd], values);
+            write(&mut program.output_values(values));
+        });
+    }
+
+    /// [`Interpreted::run`] on intervals: the parameters as points, `q`, `q̇` as boxes.
+    fn run_interval(
+        &self,
+        program: &Compiled,
+        p: &[f64],
+        q: &[Interval],
+        qd: &[Interval],
+        write: impl FnOnce(&mut dyn Iterator<Item = Interval>),
+    ) {
+        let nq = self.nq();
+        assert_eq!(
+            p.len(),
+            self.np,
+            "p: length {} instead of {}",
+            p.len(),
+            self.np
+        );
+        assert_eq!(q.len(), nq, "q: length {} instead of {nq}", q.len());
+        assert_eq!(qd.len(), nq, "qd: length {} instead of {nq}", qd.len());
+        INTERVALS.with_borrow_mut(|(values, params)| {
+            if values.len() < program.slots() {
+                values.resize(program.slots(), Interval::ZERO);
+            }
+            params.clear();
+            params.extend(p.iter().map(|&x| Interval::point(x)));
+            program.run(&[&params[..], q, qd], values);
+            write(&mut program.output_values(values));
+        });
+    }
+}
+
 fn sized<'a, T>(slice: &'a mut [T], len: usize, what: &str) -> &'a mut [T] {
     assert_eq!(
         slice.len(),
@@ -154,12 +221,12 @@ fn sized<'a, T>(slice: &'a mut [T], len: usize, what: &str) -> &'a mut [T] {
 
 /// Writes the joint terms, in [`softcbf_codegen::model::FunctionOutputs::joint_terms`]'s
 /// order.
-fn write_joint_terms(
-    values: &mut dyn Iterator<Item = f64>,
-    rotation: &mut [[[f64; 3]; 3]],
-    translation: &mut [[f64; 3]],
-    motion_subspace: &mut [[[f64; 3]; 6]],
-    bias_acceleration: &mut [[f64; 6]],
+fn write_joint_terms<T>(
+    values: &mut dyn Iterator<Item = T>,
+    rotation: &mut [[[T; 3]; 3]],
+    translation: &mut [[T; 3]],
+    motion_subspace: &mut [[[T; 3]; 6]],
+    bias_acceleration: &mut [[T; 6]],
 ) {
     let mut next = || values.next().expect("one value per output");
     let modules = rotation
@@ -180,11 +247,11 @@ fn write_joint_terms(
 
 /// Writes the barrier terms, in [`softcbf_codegen::model::FunctionOutputs::barrier_terms`]'s
 /// order.
-fn write_barrier_terms(
-    values: &mut dyn Iterator<Item = f64>,
-    barriers: &mut [f64],
-    jacobian: &mut [f64],
-    jdot_qd: &mut [f64],
+fn write_barrier_terms<T>(
+    values: &mut dyn Iterator<Item = T>,
+    barriers: &mut [T],
+    jacobian: &mut [T],
+    jdot_qd: &mut [T],
 ) {
     let nq = jacobian.len() / barriers.len().max(1);
     let mut next = || values.next().expect("one value per output");
@@ -325,6 +392,73 @@ impl GeneratedModel for Interpreted {
         let motion_subspace = sized(motion_subspace, n, "motion_subspace");
         let bias_acceleration = sized(bias_acceleration, n, "bias_acceleration");
         self.run(&self.joint_terms, p, q, Some(qd), |values| {
+            write_joint_terms(
+                values,
+                rotation,
+                translation,
+                motion_subspace,
+                bias_acceleration,
+            )
+        });
+    }
+    fn barrier_terms_interval(
+        &self,
+        p: &[f64],
+        q: &[Interval],
+        qd: &[Interval],
+        barriers: &mut [Interval],
+        jacobian: &mut [Interval],
+        jdot_qd: &mut [Interval],
+    ) {
+        let (nb, nq) = (self.nb(), self.nq());
+        let barriers = sized(barriers, nb, "barriers");
+        let jacobian = sized(jacobian, nb * nq, "jacobian");
+        let jdot_qd = sized(jdot_qd, nb, "jdot_qd");
+        self.run_interval(&self.barrier_terms, p, q, qd, |values| {
+            write_barrier_terms(values, barriers, jacobian, jdot_qd)
+        });
+    }
+    fn joint_terms_interval(
+        &self,
+        p: &[f64],
+        q: &[Interval],
+        qd: &[Interval],
+        rotation: &mut [[[Interval; 3]; 3]],
+        translation: &mut [[Interval; 3]],
+        motion_subspace: &mut [[[Interval; 3]; 6]],
+        bias_acceleration: &mut [[Interval; 6]],
+    ) {
+        let n = self.n_modules();
+        let rotation = sized(rotation, n, "rotation");
+        let translation = sized(translation, n, "translation");
+        let motion_subspace = sized(motion_subspace, n, "motion_subspace");
+        let bias_acceleration = sized(bias_acceleration, n, "bias_acceleration");
+        self.run_interval(&self.joint_terms, p, q, qd, |values| {
+            write_joint_terms(
+                values,
+                rotation,
+                translation,
+                motion_subspace,
+                bias_acceleration,
+            )
+        });
+    }
+    fn joint_terms_dual(
+        &self,
+        p: &[f64],
+        q: &[Dual],
+        qd: &[Dual],
+        rotation: &mut [[[Dual; 3]; 3]],
+        translation: &mut [[Dual; 3]],
+        motion_subspace: &mut [[[Dual; 3]; 6]],
+        bias_acceleration: &mut [[Dual; 6]],
+    ) {
+        let n = self.n_modules();
+        let rotation = sized(rotation, n, "rotation");
+        let translation = sized(translation, n, "translation");
+        let motion_subspace = sized(motion_subspace, n, "motion_subspace");
+        let bias_acceleration = sized(bias_acceleration, n, "bias_acceleration");
+        self.run_dual(&self.joint_terms, p, q, qd, |values| {
             write_joint_terms(
                 values,
                 rotation,

@@ -14,6 +14,7 @@
 //! time from the same expressions (module `interpreter`; several times slower).
 
 pub use softcbf_description::barriers::{BarrierKind, KindGroup, Point};
+pub use softcbf_interval::{Dual, Interval};
 
 #[cfg(feature = "interpreter")]
 pub mod interpreter;
@@ -131,6 +132,46 @@ pub trait GeneratedModel: Sync {
         motion_subspace: &mut [[[f64; 3]; 6]],
         bias_acceleration: &mut [[f64; 6]],
     );
+    /// Enclosures of [`GeneratedModel::barrier_terms`] over every state in the boxes `q`,
+    /// `q̇` (`nq` intervals each, \[m\], \[m/s\]): each barrier \[m\] (`nb`), its Jacobian
+    /// row-major (`nb × nq`) and `J̇q̇` \[m/s²\] (`nb`). Parameters `p` are numbers.
+    /// Panics on wrong lengths, like the `f64` functions.
+    #[allow(clippy::too_many_arguments)]
+    fn barrier_terms_interval(
+        &self,
+        p: &[f64],
+        q: &[Interval],
+        qd: &[Interval],
+        barriers: &mut [Interval],
+        jacobian: &mut [Interval],
+        jdot_qd: &mut [Interval],
+    );
+    /// Enclosures of [`GeneratedModel::joint_terms`] over every state in the boxes `q`,
+    /// `q̇` (same layouts, one entry per module).
+    #[allow(clippy::too_many_arguments)]
+    fn joint_terms_interval(
+        &self,
+        p: &[f64],
+        q: &[Interval],
+        qd: &[Interval],
+        rotation: &mut [[[Interval; 3]; 3]],
+        translation: &mut [[Interval; 3]],
+        motion_subspace: &mut [[[Interval; 3]; 6]],
+        bias_acceleration: &mut [[Interval; 6]],
+    );
+    /// Jets of [`GeneratedModel::joint_terms`] (value enclosures over the boxes `q`, `q̇`
+    /// and enclosures of their derivatives along the inputs' slopes).
+    #[allow(clippy::too_many_arguments)]
+    fn joint_terms_dual(
+        &self,
+        p: &[f64],
+        q: &[Dual],
+        qd: &[Dual],
+        rotation: &mut [[[Dual; 3]; 3]],
+        translation: &mut [[Dual; 3]],
+        motion_subspace: &mut [[[Dual; 3]; 6]],
+        bias_acceleration: &mut [[Dual; 6]],
+    );
 }
 
 /// Implements [`GeneratedModel`] for the functions of a generated module.
@@ -138,7 +179,7 @@ pub trait GeneratedModel: Sync {
 #[doc(hidden)]
 macro_rules! impl_generated_model {
     ($model:ident, $name:literal, $source:literal, $routing:literal) => {
-        fn sized<'a, const N: usize>(s: &'a [f64], what: &str) -> &'a [f64; N] {
+        fn sized<'a, T, const N: usize>(s: &'a [T], what: &str) -> &'a [T; N] {
             s.try_into()
                 .unwrap_or_else(|_| panic!("{what}: length {} instead of {N}", s.len()))
         }
@@ -244,6 +285,66 @@ macro_rules! impl_generated_model {
                 bias_acceleration: &mut [[f64; 6]],
             ) {
                 joint_terms(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized(qd, "qd"),
+                    sized_mut(rotation, "rotation"),
+                    sized_mut(translation, "translation"),
+                    sized_mut(motion_subspace, "motion_subspace"),
+                    sized_mut(bias_acceleration, "bias_acceleration"),
+                )
+            }
+            fn barrier_terms_interval(
+                &self,
+                p: &[f64],
+                q: &[$crate::Interval],
+                qd: &[$crate::Interval],
+                b: &mut [$crate::Interval],
+                jacobian: &mut [$crate::Interval],
+                jdot_qd: &mut [$crate::Interval],
+            ) {
+                let (rows, rest) = jacobian.as_chunks_mut::<NQ>();
+                assert!(rest.is_empty(), "jacobian: length not a multiple of {NQ}");
+                barrier_terms_interval(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized(qd, "qd"),
+                    sized_mut(b, "barriers"),
+                    sized_mut(rows, "jacobian"),
+                    sized_mut(jdot_qd, "jdot_qd"),
+                )
+            }
+            fn joint_terms_interval(
+                &self,
+                p: &[f64],
+                q: &[$crate::Interval],
+                qd: &[$crate::Interval],
+                rotation: &mut [[[$crate::Interval; 3]; 3]],
+                translation: &mut [[$crate::Interval; 3]],
+                motion_subspace: &mut [[[$crate::Interval; 3]; 6]],
+                bias_acceleration: &mut [[$crate::Interval; 6]],
+            ) {
+                joint_terms_interval(
+                    sized(p, "p"),
+                    sized(q, "q"),
+                    sized(qd, "qd"),
+                    sized_mut(rotation, "rotation"),
+                    sized_mut(translation, "translation"),
+                    sized_mut(motion_subspace, "motion_subspace"),
+                    sized_mut(bias_acceleration, "bias_acceleration"),
+                )
+            }
+            fn joint_terms_dual(
+                &self,
+                p: &[f64],
+                q: &[$crate::Dual],
+                qd: &[$crate::Dual],
+                rotation: &mut [[[$crate::Dual; 3]; 3]],
+                translation: &mut [[$crate::Dual; 3]],
+                motion_subspace: &mut [[[$crate::Dual; 3]; 6]],
+                bias_acceleration: &mut [[$crate::Dual; 6]],
+            ) {
+                joint_terms_dual(
                     sized(p, "p"),
                     sized(q, "q"),
                     sized(qd, "qd"),

@@ -42,6 +42,9 @@ pub struct HoldPrediction {
     /// `a_j` (`m × nq`) and `Γ_j` (`m × nq × nq`, each row-major).
     free: Vec<f64>,
     forced: Vec<f64>,
+    /// `ȧ_j` and `Γ̇_j`, the same layouts.
+    free_velocity: Vec<f64>,
+    forced_velocity: Vec<f64>,
     hold: f64,
 }
 
@@ -66,6 +69,8 @@ impl HoldPrediction {
             forced_next: vec![0.0; 2 * nq * nq],
             free: vec![0.0; samples * nq],
             forced: vec![0.0; samples * nq * nq],
+            free_velocity: vec![0.0; samples * nq],
+            forced_velocity: vec![0.0; samples * nq * nq],
             hold: 0.0,
         }
     }
@@ -170,8 +175,28 @@ impl HoldPrediction {
             self.free[j * nq..(j + 1) * nq].copy_from_slice(&self.free_state[..nq]);
             self.forced[j * nq * nq..(j + 1) * nq * nq]
                 .copy_from_slice(&self.forced_state[..nq * nq]);
+            self.free_velocity[j * nq..(j + 1) * nq].copy_from_slice(&self.free_state[nq..]);
+            self.forced_velocity[j * nq * nq..(j + 1) * nq * nq]
+                .copy_from_slice(&self.forced_state[nq * nq..]);
         }
         self.free.iter().chain(&self.forced).all(|v| v.is_finite())
+    }
+
+    /// Steps a state `x = (e, ė)` (`2 nq` entries) of the linear model over cell `j` (from
+    /// sample `j − 1`, or the tick for `j = 0`, to sample `j`) under a force `force` held
+    /// over the cell (`nq` entries, added to `τ − g₀`): `x ← F x + W force` with the cell's
+    /// propagator of the last [`HoldPrediction::predict`]. `out` receives the new state.
+    pub fn step(&self, j: usize, x: &[f64], force: &[f64], out: &mut [f64]) {
+        let nq = self.nq;
+        let (two, size) = (2 * nq, 3 * nq);
+        let square = size * size;
+        let power = if j == 0 { 0 } else { (j - 1).min(self.early) };
+        let p = &self.propagators[power * square..(power + 1) * square];
+        for r in 0..two {
+            let row = &p[r * size..(r + 1) * size];
+            out[r] = crate::linalg::dot(&row[..two], &x[..two])
+                + crate::linalg::dot(&row[two..], &force[..nq]);
+        }
     }
 
     /// `ė(Δ)` with `τ = g₀`: the velocity at the end of the hold \[m/s\].
@@ -193,6 +218,18 @@ impl HoldPrediction {
     pub fn forced(&self, j: usize) -> &[f64] {
         let size = self.nq * self.nq;
         &self.forced[j * size..(j + 1) * size]
+    }
+
+    /// `ȧ_j`: the velocity at sample `j` with `τ = g₀` \[m/s\].
+    pub fn free_velocity(&self, j: usize) -> &[f64] {
+        &self.free_velocity[j * self.nq..(j + 1) * self.nq]
+    }
+
+    /// `Γ̇_j = ∂ė(t_j)/∂τ`, row-major `nq × nq` \[m/(N·s)\]: also the impulse response
+    /// `H(t_j)`, the motion at `t_j` after a unit impulse of force at `0`.
+    pub fn forced_velocity(&self, j: usize) -> &[f64] {
+        let size = self.nq * self.nq;
+        &self.forced_velocity[j * size..(j + 1) * size]
     }
 
     /// `e(t_j) = a_j + Γ_j u` for the held `u = τ − g₀` (length `nq`), into `out`.

@@ -54,6 +54,7 @@ pub mod barrier_info;
 pub mod cli;
 pub mod control;
 pub mod dynamics;
+pub mod enclosure;
 pub mod exit;
 pub mod hardware;
 pub mod hold;

@@ -282,6 +282,9 @@ pub struct TickCounts {
     pub failed: usize,
     /// Ticks whose state or model was not finite (safe command applied).
     pub invalid_state: usize,
+    /// Ticks whose command could not be certified over its hold (the certified mode's
+    /// [`TickStatus::Uncertified`]).
+    pub uncertified: usize,
 }
 
 /// What `summary.json` holds for one run.
@@ -556,6 +559,10 @@ pub fn simulate(
                 }
             }
             TickStatus::InvalidState(_) => counts.invalid_state += 1,
+            TickStatus::Uncertified(_) => {
+                counts.qp_solves += 1;
+                counts.uncertified += 1;
+            }
         }
         observe(&mut minimum, &mut lowest_by_kind, table, barriers, t);
         let applied = if k < ticks { controller.tau() } else { &[][..] };

@@ -24,7 +24,7 @@ pub trait RunLog {
 /// | column | meaning |
 /// |---|---|
 /// | `fresh` | 1: the command came from this tick's reading |
-/// | `status` | −1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP failed, 4 invalid state |
+/// | `status` | −1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP failed, 4 invalid state, 5 uncertified |
 /// | `attempts` | sync reads this tick |
 /// | `comm_errors` | ticks in a row without a reading (held) |
 /// | `read [us]`, `compute [us]`, `write [us]` | bus wait, software, write |

@@ -137,6 +137,7 @@ fn status_code(status: TickStatus) -> f64 {
         TickStatus::Relaxed => 2.0,
         TickStatus::QpFailed => 3.0,
         TickStatus::InvalidState(_) => 4.0,
+        TickStatus::Uncertified(_) => 5.0,
     }
 }
 
@@ -277,6 +278,7 @@ pub fn run_reporting<P: ServoPort>(
         fallbacks: 0,
         invalid: 0,
         relaxed: 0,
+        uncertified: 0,
         interventions: 0,
         deadlines: Deadlines::default(),
         clamps: Clamps::default(),
@@ -612,6 +614,7 @@ fn control_loop<P: ServoPort>(
                         summary.invalid += 1;
                     }
                     TickStatus::Relaxed => summary.relaxed += 1,
+                    TickStatus::Uncertified(_) => summary.uncertified += 1,
                     TickStatus::Filtered | TickStatus::Unfiltered => {}
                 }
                 summary.clamps.add(clamps);

@@ -156,6 +156,9 @@ pub struct RunSummary {
     pub invalid: u64,
     /// Ticks whose QP had to relax barrier rows.
     pub relaxed: u64,
+    /// Ticks whose command could not be certified over its hold
+    /// ([`crate::control::TickStatus::Uncertified`]).
+    pub uncertified: u64,
     /// Ticks whose command the safety filter changed (by more than
     /// [`CLAMP_TOLERANCE`](crate::hardware::mapping::CLAMP_TOLERANCE) in some entry of `τ`).
     pub interventions: u64,

@@ -115,6 +115,7 @@ pub fn header(coordinates: usize) -> Vec<String> {
             "relaxed",
             "failed",
             "invalid_state",
+            "uncertified",
             "integrator_steps",
             "stopped",
         ]
@@ -165,7 +166,7 @@ pub fn runs_csv(rows: &[RunRow], coordinates: usize) -> String {
         }
         let _ = writeln!(
             text,
-            ",{},{:?},{:?},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{}",
+            ",{},{:?},{:?},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{},{}",
             d.noise_seed,
             row.set_point_barrier,
             row.lowest_barrier,
@@ -179,6 +180,7 @@ pub fn runs_csv(rows: &[RunRow], coordinates: usize) -> String {
             row.counts.relaxed,
             row.counts.failed,
             row.counts.invalid_state,
+            row.counts.uncertified,
             row.integrator_steps,
             plain(&row.stopped),
         );
@@ -266,7 +268,7 @@ pub fn read_runs(
         let lowest_t = float(next())?;
         let set_point_error = float(next())?;
         let max_abs_tau = float(next())?;
-        let mut counts = [0usize; 7];
+        let mut counts = [0usize; 8];
         for count in &mut counts {
             *count = whole(next())? as usize;
         }
@@ -288,6 +290,7 @@ pub fn read_runs(
             relaxed,
             failed,
             invalid_state,
+            uncertified,
             integrator_steps,
         ] = counts;
         rows.push(RunRow {
@@ -316,6 +319,7 @@ pub fn read_runs(
                 relaxed,
                 failed,
                 invalid_state,
+                uncertified,
             },
             integrator_steps,
             stopped,
@@ -500,6 +504,7 @@ mod tests {
                 relaxed: 1,
                 failed: 0,
                 invalid_state: 0,
+                uncertified: 0,
             },
             integrator_steps: 300,
             stopped: String::new(),

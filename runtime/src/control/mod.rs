@@ -11,15 +11,21 @@
 //!
 //! That is the paper's row ([`SafetyMode::Paper`]); [`SafetyMode::HoldCorrection`] takes
 //! the acceleration of an implicit Euler step over the hold instead, and
-//! [`SafetyMode::Sampled`] (the default of scenarios and hardware runs) replaces the rows by
-//! the barriers at samples of the whole hold, predicted for the command being chosen
-//! ([`crate::hold`]), with a robust margin for a robot's declared uncertainty
-//! (docs/model.md §5).
+//! [`SafetyMode::Certified`] (the default) replaces the rows by rows that prove every barrier
+//! non-negative over the whole hold for every plant in the declared box ([`certified`]), and
+//! [`SafetyMode::Predicted`] (kept for comparison) by the barriers at samples of the hold,
+//! predicted for the command being chosen ([`crate::hold`]), with a first-order margin for a
+//! robot's declared uncertainty (docs/model.md §5).
 //!
 //! The tick is a pure function of (model, controller workspace, state, reference): it reads
 //! no clock, touches no port and prints nothing, so simulation and hardware share it.
 
 use std::ops::Range;
+
+pub mod certified;
+
+pub use certified::Uncertified;
+use certified::{CertifiedWorkspace, certified_filter};
 
 use softcbf_description::uncertainty::{self, ModuleFactors};
 
@@ -53,7 +59,7 @@ pub struct ControllerSettings {
     /// sampled-data guarantee use it; the paper's rows do not. `0` only with
     /// [`SafetyMode::Paper`].
     pub hold: f64,
-    /// How the sampled-data rows sample the hold (used by [`SafetyMode::Sampled`]).
+    /// How the sampled-data rows sample the hold (used by [`SafetyMode::Predicted`]).
     pub sampled: SampledSettings,
     /// Constant limits on the command, `A_u τ ≥ b_u`: rows (row-major, `nq` columns) and
     /// right-hand sides, solved together with the barrier rows (e.g. cable tensions kept in
@@ -119,7 +125,7 @@ impl ControllerSettings {
                 reason: format!("must be finite and ≥ 0 s, got {}", self.hold),
             });
         }
-        if self.safety != SafetyMode::Paper && self.hold <= 0.0 {
+        if self.safety.uses_hold() && self.hold <= 0.0 {
             return Err(ControllerError::Setting {
                 field: "hold",
                 reason: format!(
@@ -168,34 +174,48 @@ impl ControllerSettings {
 /// (docs/model.md §5).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum SafetyMode {
+    /// The certified rows: every barrier proven non-negative over the whole hold, for every
+    /// plant in the declared box ([`certified`]). The default.
+    #[default]
+    Certified,
     /// The paper's continuous-time HOCBF rows `A = J M⁻¹` at the sample.
     Paper,
     /// The paper's rows with the acceleration of one implicit Euler step over the hold.
     HoldCorrection,
-    /// The sampled-data guarantee: the barriers predicted over the whole hold.
-    #[default]
-    Sampled,
+    /// The barriers at samples of the hold, predicted without a bound between samples or
+    /// on the prediction's remainder (the former default, `sampled`; kept for comparison).
+    Predicted,
 }
 
 impl SafetyMode {
     /// Every mode, in the order the help lists them.
-    pub const ALL: [SafetyMode; 3] = [
-        SafetyMode::Sampled,
+    pub const ALL: [SafetyMode; 4] = [
+        SafetyMode::Certified,
         SafetyMode::Paper,
         SafetyMode::HoldCorrection,
+        SafetyMode::Predicted,
     ];
 
     /// The name used in files, on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
+            SafetyMode::Certified => "certified",
             SafetyMode::Paper => "paper",
             SafetyMode::HoldCorrection => "hold-correction",
-            SafetyMode::Sampled => "sampled",
+            SafetyMode::Predicted => "predicted",
         }
     }
 
     /// The mode named `name`, or an error listing the names.
     pub fn parse(name: &str) -> Result<SafetyMode, String> {
+        if name == "sampled" {
+            return Err(
+                "`sampled` was renamed: give \"certified\" (the guarantee proven \
+                        between samples, the default) or \"predicted\" (the former sampled rows, \
+                        without a bound between samples)"
+                    .to_string(),
+            );
+        }
         SafetyMode::ALL
             .into_iter()
             .find(|mode| mode.name() == name)
@@ -207,6 +227,11 @@ impl SafetyMode {
                         .join(", ")
                 )
             })
+    }
+
+    /// Whether the mode predicts the hold (and needs a hold period `Δ > 0`).
+    pub fn uses_hold(self) -> bool {
+        self != SafetyMode::Paper
     }
 }
 
@@ -299,6 +324,11 @@ pub enum TickStatus {
     Relaxed,
     /// The QP gave no verified solution: `τ` is the safe command (zero).
     QpFailed,
+    /// [`SafetyMode::Certified`] only: the command satisfies the rows of the prediction but
+    /// could not be proven safe over the whole hold (why: [`Uncertified`]); `τ` is the best
+    /// command found (the first pass's, or the certified pass's when only the hold's first
+    /// instants could not be bounded).
+    Uncertified(Uncertified),
     /// The state or reference was not finite, had a wrong length, or the dynamics failed:
     /// `τ` is the safe command (zero).
     InvalidState(InvalidState),
@@ -371,8 +401,10 @@ pub struct Controller {
     /// the sampled-data rows (sample-major: row `j nb + k` is barrier `k` at sample `j`,
     /// row `m nb + k` its condition at the end of the hold).
     barrier_rows: usize,
-    /// Workspace of the sampled-data rows ([`SafetyMode::Sampled`] only).
+    /// Workspace of the sampled-data rows ([`SafetyMode::Predicted`] only).
     sampled: Option<SampledWorkspace>,
+    /// Workspace of the certified rows ([`SafetyMode::Certified`] only).
+    certified: Option<Box<CertifiedWorkspace>>,
     /// How long before the tick the state was read when it was predicted to the tick by the
     /// model \[s\]: the robust margin covers the mismatch over it too.
     margin_age: f64,
@@ -750,7 +782,7 @@ impl Controller {
         let (nq, nb) = (model.nq(), model.nb());
         settings.validate(nq)?;
         let (limit_rows, limit_rhs) = &settings.input_limits;
-        let sampled = (settings.safety == SafetyMode::Sampled)
+        let sampled = (settings.safety == SafetyMode::Predicted)
             .then(|| SampledWorkspace::new(model, &settings.sampled));
         let mut sampled = sampled;
         if let Some(sampled) = sampled.as_mut()
@@ -758,18 +790,28 @@ impl Controller {
         {
             sampled.robust = Some(RobustMargin::new(model, &settings.sampled)?);
         }
-        // With the sampled-data rows, one row per barrier and sample, then one per barrier
-        // for the end of the hold.
-        let barrier_rows = match &sampled {
-            Some(sampled) => nb * (sampled.prediction.samples() + 1),
-            None => nb,
+        let certified = (settings.safety == SafetyMode::Certified).then(|| {
+            let early = CertifiedWorkspace::early_samples(model, &settings.sampled, settings.hold);
+            Box::new(CertifiedWorkspace::new(model, &settings.sampled, early))
+        });
+        // With the predicted and certified rows, one row per barrier and sample, then one per
+        // barrier for the end of the hold; the certified rows add a box on the command.
+        let samples = settings.sampled.samples + settings.sampled.early;
+        let (barrier_rows, extra_rows) = match settings.safety {
+            SafetyMode::Predicted => (nb * (samples + 1), 0),
+            SafetyMode::Certified => (
+                nb * (certified.as_ref().map_or(samples, |c| c.samples()) + 1),
+                CertifiedWorkspace::box_rows(nq),
+            ),
+            SafetyMode::Paper | SafetyMode::HoldCorrection => (nb, 0),
         };
-        let rows = barrier_rows + limit_rhs.len();
+        let limits_start = barrier_rows + extra_rows;
+        let rows = limits_start + limit_rhs.len();
         let qp = SafetyQp::new(nq, rows, settings.qp)?;
         let mut constraint_rows = vec![0.0; rows * nq];
-        constraint_rows[barrier_rows * nq..].copy_from_slice(limit_rows);
+        constraint_rows[limits_start * nq..].copy_from_slice(limit_rows);
         let mut constraint_rhs = vec![0.0; rows];
-        constraint_rhs[barrier_rows..].copy_from_slice(limit_rhs);
+        constraint_rhs[limits_start..].copy_from_slice(limit_rhs);
         let [p1, p2] = settings.barrier_gains;
         let barrier_gains = (0..nb)
             .map(|k| {
@@ -798,6 +840,7 @@ impl Controller {
             gain_scale: 1.0,
             barrier_rows,
             sampled,
+            certified,
             margin_age: 0.0,
         })
     }
@@ -1072,13 +1115,16 @@ pub fn tick_nominal(
     if controller.sampled.is_some() {
         return sampled_filter(model, controller, q, qd);
     }
+    if controller.certified.is_some() {
+        return certified_filter(model, controller, q, qd);
+    }
 
     // Rows A_k = J_k M⁻¹ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k
     // (with the hold correction: S⁻¹ for M⁻¹ and n + Δ K q̇ for n).
     // A barrier depends on few coordinates (its module's), so zero entries of J are skipped.
     let hold = match settings.safety {
         SafetyMode::Paper => 0.0,
-        SafetyMode::HoldCorrection | SafetyMode::Sampled => settings.hold,
+        SafetyMode::HoldCorrection | SafetyMode::Predicted | SafetyMode::Certified => settings.hold,
     };
     let scale = controller.gain_scale;
     let factor = if hold > 0.0 {
