@@ -103,6 +103,8 @@ struct Axis {
     scale: Scale,
     ticks: Vec<f64>,
     minor: Vec<f64>,
+    /// The value standing for `-∞` (its tick is labelled so), if any.
+    infinity: Option<f64>,
 }
 
 impl Axis {
@@ -113,6 +115,7 @@ impl Axis {
             scale: Scale::Linear,
             ticks: Vec::new(),
             minor: Vec::new(),
+            infinity: None,
         }
     }
 
@@ -165,6 +168,7 @@ impl Axis {
             scale: Scale::SymLog(x0),
             ticks,
             minor,
+            infinity: None,
         }
     }
 
@@ -178,6 +182,9 @@ impl Axis {
 
     /// The label of tick `v`.
     fn label(&self, v: f64) -> String {
+        if self.infinity == Some(v) {
+            return "−∞".to_string();
+        }
         match self.scale {
             Scale::SymLog(_) => decade_label(v),
             Scale::Linear => {
@@ -615,10 +622,18 @@ impl Figure {
             lo = lo.min(symlog(t, x0));
             hi = hi.max(symlog(t, x0));
         }
-        // -∞ gets a row of its own below everything finite.
-        let floor = infinite.then(|| symexp(lo - 0.6, x0));
+        let (_, height) = plot_pixels();
+        let u = padded(lo, hi, 1.0);
+        // -∞ gets a row of its own, half a decade below everything finite, labelled so.
+        let floor = infinite.then(|| symexp(u.start - 0.5, x0));
+        let start = floor.map_or(u.start, |f| symlog(f, x0) - 0.05);
+        let mut y = Axis::symlog(symexp(start, x0)..symexp(u.end, x0), x0, height, Y_TICK_GAP);
         if let Some(f) = floor {
-            lo = symlog(f, x0);
+            let finite = symexp(u.start, x0);
+            y.ticks.retain(|&t| t >= finite);
+            y.minor.retain(|&t| t >= finite);
+            y.ticks.insert(0, f);
+            y.infinity = Some(f);
             for curve in &mut steps {
                 for point in curve.iter_mut() {
                     if !point.1.is_finite() {
@@ -627,14 +642,6 @@ impl Figure {
                 }
             }
         }
-        let (_, height) = plot_pixels();
-        let u = padded(lo, hi, 1.0);
-        let y = Axis::symlog(
-            symexp(u.start, x0)..symexp(u.end, x0),
-            x0,
-            height,
-            Y_TICK_GAP,
-        );
         let threshold_text = threshold_text(threshold);
         let legend = steps
             .iter()
@@ -1328,6 +1335,42 @@ mod tests {
             &dir,
         );
         assert_written(&write_figures(&dir, &equal, &groups, 0.0).unwrap(), &dir);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn search_figures_of_any_input_are_written() {
+        let dir = temp_dir("search");
+        let groups = vec![
+            "paper @ 1000 Hz".to_string(),
+            "sampled @ 33.3 Hz".to_string(),
+        ];
+        let cases: Vec<Vec<Vec<f64>>> = vec![
+            vec![],
+            vec![vec![], vec![0.0; 3]],
+            vec![
+                vec![0.02, 1e-4, -3e-6, f64::NEG_INFINITY, 0.01],
+                vec![0.03, 0.01, f64::NAN, 2e-11],
+            ],
+            vec![vec![f64::NEG_INFINITY; 4]],
+        ];
+        for scores in &cases {
+            let files = write_search_figure(&dir, scores, &groups, -1e-6).unwrap();
+            assert_eq!(files.len(), 2);
+            for file in &files {
+                assert!(std::fs::metadata(file).unwrap().len() > 0);
+            }
+        }
+        // The -∞ row is labelled as such, below every finite value.
+        let Figure::Progress(p) = Figure::progress(&cases[2], &groups, -1e-6) else {
+            panic!("not a progress figure");
+        };
+        let floor = p.floor.unwrap();
+        assert_eq!(p.y.label(floor), "−∞");
+        assert!(p.y.ticks.iter().all(|&t| t >= floor));
+        assert!(floor < -3e-3 && p.y.range.start < floor);
+        // Each curve steps down to the lowest so far: group 1 reaches -∞ at its NaN.
+        assert_eq!(p.curves[1].last().unwrap(), &(4.0, floor));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

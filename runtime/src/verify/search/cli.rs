@@ -299,12 +299,13 @@ fn worst_text(
     let header = vec![
         format!("The worst case `softcbf verify --search` found for `{name}`: {found}."),
         format!(
-            "Search of {} (seed {}, {} runs, {} islands): island {}, generation {}, \
+            "Search of {} (seed {}, {} runs, {} island{}): island {}, generation {}, \
              candidate {}.",
             batch.scenario,
             batch.seed,
             batch.runs,
             batch.islands,
+            if batch.islands == 1 { "" } else { "s" },
             worst.island,
             worst.generation,
             worst.candidate
@@ -351,18 +352,24 @@ fn summarize(
     written.extend(figures.iter().map(|p| p.display().to_string()));
     for group in &report.groups {
         let worst = match &group.worst {
-            Some(w) => {
-                let value = w.lowest_barrier.map_or_else(
-                    || "-inf (left the model's domain or stopped)".to_string(),
-                    |v| format!("{v:.3e}"),
-                );
-                format!("worst {value} ({}, t = {:.3} s)", w.barrier, w.t)
-            }
+            Some(w) => match w.lowest_barrier {
+                Some(v) => format!("worst {v:.3e} ({}, t = {:.3} s)", w.barrier, w.t),
+                None if w.invalid_state > 0 => format!(
+                    "worst -inf: the state left the model's domain ({} ticks)",
+                    w.invalid_state
+                ),
+                None => format!("worst: stopped early ({})", w.stopped),
+            },
             None => "no runs".into(),
         };
         let first = group.first_unsafe.map_or_else(
             || "none unsafe".to_string(),
-            |k| format!("first unsafe after {k} runs"),
+            |k| {
+                format!(
+                    "first unsafe after {k} run{}",
+                    if k == 1 { "" } else { "s" }
+                )
+            },
         );
         console.say(&format!(
             "{}: {} of {} runs unsafe (below {:e}, invalid state or stopped), {first}, {worst}",

@@ -35,9 +35,12 @@ fn floats(values: &[f64]) -> Value {
     Value::Array(array)
 }
 
-/// An absolute path as a TOML string (a path that is not UTF-8 is written lossily).
+/// A path as an absolute TOML string, without `..` where the file exists (a path that is
+/// not UTF-8 is written lossily).
 fn path_value(path: &Path) -> Value {
-    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let absolute = std::fs::canonicalize(path)
+        .or_else(|_| std::path::absolute(path))
+        .unwrap_or_else(|_| path.to_path_buf());
     Value::from(absolute.to_string_lossy().into_owned())
 }
 
