@@ -384,7 +384,7 @@ fn bad_options_are_refused_naming_the_option() {
     refused(&["--search", "--runs", "0"], "--runs");
     refused(
         &["--search", "--runs", "3", "--islands", "4"],
-        "--runs: 3 runs cannot give",
+        "a budget of 3 runs cannot give",
     );
     refused(&["--search", "--shard", "1/1"], "--shard: expected K/M");
     refused(
@@ -452,5 +452,52 @@ fn plant_factors_and_sensor_noise_of_a_scenario_are_checked_at_the_field() {
             .unwrap()
             .ends_with("× plant_factors"),
         "{summary}"
+    );
+    assert_eq!(summary["settings"]["sensor_noise"]["seed"], 7);
+    assert_eq!(summary["settings"]["sensor_noise"]["qd"], 1e-3);
+}
+
+#[test]
+fn batches_and_searches_start_only_where_the_guarantee_holds() {
+    let dir = temp_dir("search-starts");
+    // Every start of this box moves at 20 m/s: some plate corner approaches faster than
+    // ḃ + p1·b ≥ 0 allows, so no start is one the guarantee covers.
+    let fast = "initial_qd_min = [20.0, 20.0, 0.0, 20.0, 20.0, 0.0]\n\
+                initial_qd_max = [20.5, 20.5, 0.0, 20.5, 20.5, 0.0]\n";
+    let scenario = scenario(&dir, "fast.toml", "verify-paper.toml", &[], fast);
+    let scenario = scenario.to_str().unwrap();
+    let out = dir.join("out");
+    let batch = verify(
+        &[
+            "--scenario",
+            scenario,
+            "--runs",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        1,
+    );
+    let stderr = text(&batch.stderr);
+    assert!(
+        stderr.contains("no initial state the guarantee covers") && stderr.contains("ḃ + p1·b"),
+        "{stderr}"
+    );
+    let search = verify(
+        &[
+            "--search",
+            "--scenario",
+            scenario,
+            "--runs",
+            "4",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        1,
+    );
+    let stderr = text(&search.stderr);
+    assert!(
+        stderr.contains("no candidate whose start the guarantee covers"),
+        "{stderr}"
     );
 }

@@ -71,7 +71,8 @@ impl SearchProgress {
         let steps = if self.terminal { 200 } else { 10 };
         let step = *done * steps / self.total.max(1);
         let last = *done == self.total && matches!(event, Event::Generation { .. });
-        if step <= *shown && !last {
+        // The last run's line waits for its generation's lowest barrier.
+        if (step <= *shown || *done == self.total) && !last {
             return;
         }
         *shown = step.max(*shown + usize::from(last));
@@ -141,8 +142,8 @@ fn plan(command: &SearchCommand, space: &Space) -> Result<Plan, String> {
     let groups = command.spec.groups.len();
     if command.spec.runs < groups * islands {
         return Err(format!(
-            "--runs: {} runs cannot give each of the {groups} groups on each of the \
-             {islands} islands one run; give at least {}",
+            "--runs (or the table's `runs`): a budget of {} runs cannot give each of the \
+             {groups} groups on each of the {islands} islands one run; give at least {}",
             command.spec.runs,
             groups * islands
         ));

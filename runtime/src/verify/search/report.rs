@@ -398,7 +398,7 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(SearchBatch, Vec<Candidate>, Vec<PathB
         )));
     }
     let groups = search.groups.len();
-    for island in 0..search.islands {
+    for (island, holder) in holders.iter().enumerate() {
         for group in 0..groups {
             let expected = super::budget(search.runs, groups, group, search.islands, island);
             let held = candidates
@@ -409,11 +409,122 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(SearchBatch, Vec<Candidate>, Vec<PathB
                 return Err(TableError::Merge(format!(
                     "{}: island {island} holds {held} runs of `{}`, its search spends \
                      {expected}: the shard did not finish; run it again",
-                    holders[island].display(),
+                    holder.display(),
                     search.groups[group]
                 )));
             }
         }
     }
     Ok((search, candidates, holders))
+}
+
+#[cfg(test)]
+mod tests {
+    use softcbf_description::uncertainty::ModuleFactors;
+
+    use super::*;
+    use crate::control::SafetyMode;
+    use crate::sim::TickCounts;
+    use crate::verify::RunRow;
+    use crate::verify::draw::Draw;
+
+    fn candidate(
+        island: usize,
+        generation: usize,
+        k: usize,
+        group: usize,
+        lowest: f64,
+    ) -> Candidate {
+        Candidate {
+            island,
+            generation,
+            candidate: k,
+            row: RunRow {
+                run: 3 * generation + k,
+                draw: Draw {
+                    seed: 9,
+                    group,
+                    safety: SafetyMode::Paper,
+                    control_period: 0.0303,
+                    set_point: vec![0.1 / 3.0, -1e-300, 0.0, 2.5e-7, -0.07, 1.0 / 7.0],
+                    initial_q: vec![0.0; 6],
+                    initial_qd: vec![0.0; 6],
+                    factors: vec![
+                        ModuleFactors {
+                            stiffness: [0.8 + f64::EPSILON, 1.2],
+                            damping: [1.0 / 3.0, 0.9],
+                            mass: 1.1,
+                        },
+                        ModuleFactors::NOMINAL,
+                    ],
+                    noise_seed: (1 << 62) + 12345,
+                },
+                set_point_barrier: -0.0123,
+                lowest_barrier: lowest,
+                lowest_label: "module 1 corner 3".into(),
+                lowest_t: 0.1 + 0.2,
+                set_point_error: 1e-9,
+                max_abs_tau: 500.4,
+                counts: TickCounts {
+                    ticks: 100,
+                    invalid_state: usize::from(lowest == f64::NEG_INFINITY),
+                    ..TickCounts::default()
+                },
+                integrator_steps: 300,
+                stopped: String::new(),
+            },
+        }
+    }
+
+    fn batch() -> SearchBatch {
+        SearchBatch {
+            scenario: "s.toml".into(),
+            fingerprint: "0123".into(),
+            seed: 1,
+            runs: 6,
+            islands: 2,
+            duration: None,
+            threshold: -1e-6,
+            groups: vec!["paper @ 33.0 Hz".into(), "other @ 33.0 Hz".into()],
+            coordinates: 6,
+            method: Settings::with_population(3),
+            variables: vec!["set_point dx1 [m]".into()],
+        }
+    }
+
+    #[test]
+    fn report_and_rows_read_back_exactly() {
+        let candidates = vec![
+            candidate(0, 0, 0, 0, 2.0 / 3.0 * 1e-3),
+            candidate(0, 0, 1, 0, -7.0 / 3.0 * 1e-6),
+            candidate(0, 1, 0, 0, 1e-3),
+            candidate(1, 0, 0, 0, f64::NEG_INFINITY),
+            candidate(1, 0, 1, 0, -1e-3),
+            candidate(1, 1, 0, 0, 0.5),
+        ];
+        let search = batch();
+        let dir =
+            std::env::temp_dir().join(format!("softcbf-search-report-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let report = report(&search, &candidates, &dir);
+        let path = dir.join("report.json");
+        std::fs::write(&path, report_json(&report)).unwrap();
+        assert_eq!(read_report(&path).unwrap(), report);
+        // Worst: island 1's run that left the domain; the first unsafe is the second run
+        // spent (generation 0 of island 0, candidate 1).
+        let group = &report.groups[0];
+        let worst = group.worst.as_ref().unwrap();
+        assert_eq!((worst.island, worst.lowest_barrier), (1, None));
+        assert_eq!(group.first_unsafe, Some(2));
+        assert_eq!((group.runs, group.unsafe_runs), (6, 3));
+        assert_eq!(report.groups[1].worst, None);
+        // search.csv reads back to the very candidates.
+        let text = search_csv(&candidates, 6);
+        let back = read_search(&text, Path::new("search.csv"), 6, &search.groups).unwrap();
+        assert_eq!(back, candidates);
+        assert_eq!(search_csv(&back, 6), text);
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(slug("sampled @ 33.0 Hz"), "sampled-33.0hz");
+        assert_eq!(slug("hold-correction @ 1000 Hz"), "hold-correction-1000hz");
+    }
 }
