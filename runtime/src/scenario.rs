@@ -15,6 +15,7 @@ use softcbf_description::gains::{RawGain, gain};
 use softcbf_description::limits::{self, Limit, short};
 use softcbf_description::robot::Robot;
 use softcbf_description::toml_file::{Checker, FileError};
+use softcbf_description::uncertainty::{self, ModuleFactors, PlantError};
 use toml::Spanned;
 
 use crate::control::{ControllerSettings, SafetyMode};
@@ -57,7 +58,7 @@ pub struct Scenario {
     /// its numbers may differ (model mismatch).
     pub plant: Option<Robot>,
     /// Noise on the state the controller samples (`None`: it samples the plant's state
-    /// exactly). Set by `softcbf verify`; a scenario file has no field for it.
+    /// exactly): the file's `[sensor_noise]`, or set by `softcbf verify` per run.
     pub sensor_noise: Option<SensorNoise>,
     /// The scenario file (`<embedded …>` for the built-in one).
     pub file: String,
@@ -162,6 +163,9 @@ struct RawScenario {
     compare: Option<bool>,
     record_period: Option<Spanned<f64>>,
     plant: Option<Spanned<String>>,
+    /// The plant's numbers as factors of the robot's (or of `plant`'s), one per module.
+    plant_factors: Option<Spanned<Vec<Spanned<RawFactors>>>>,
+    sensor_noise: Option<Spanned<RawSensorNoise>>,
     #[serde(default)]
     initial: RawInitial,
     reference: Option<Spanned<RawReference>>,
@@ -171,6 +175,27 @@ struct RawScenario {
     integrator: RawIntegrator,
     /// `softcbf verify`'s ranges, read by [`crate::verify::spec`].
     verify: Option<crate::verify::spec::RawVerify>,
+}
+
+/// One module's `[[plant_factors]]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFactors {
+    /// Bending and axial stiffness.
+    stiffness: [f64; 2],
+    /// Bending and axial damping.
+    damping: [f64; 2],
+    /// The plate's mass and principal inertia.
+    mass: f64,
+}
+
+/// `[sensor_noise]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSensorNoise {
+    q: Option<Spanned<f64>>,
+    qd: Option<Spanned<f64>>,
+    seed: Option<Spanned<i64>>,
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -417,6 +442,8 @@ impl ScenarioFile {
         );
         self.check_record_period(&c, &record_period, &control_period, &duration)?;
         let plant = self.plant(&c, model, overrides)?;
+        let plant = self.plant_factors(&c, model, plant)?;
+        let sensor_noise = self.sensor_noise(&c)?;
 
         let robot = &model.robot;
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
@@ -526,7 +553,7 @@ impl ScenarioFile {
             tolerances,
             record_period: record_period.value,
             plant: plant.value,
-            sensor_noise: None,
+            sensor_noise,
             sources: Sources {
                 gains,
                 control_period: control_period.source,
@@ -636,6 +663,83 @@ impl ScenarioFile {
             )));
         }
         Ok(Sourced::new(Some(robot), source))
+    }
+
+    /// `plant` (the plant robot, `None`: the controller's robot) with its numbers
+    /// multiplied by the file's `[[plant_factors]]`, if it gives them (one table per
+    /// module; each factor finite and > 0, each scaled number within the range of its
+    /// robot-file field).
+    fn plant_factors(
+        &self,
+        c: &Checker<'_>,
+        model: &Model,
+        plant: Sourced<Option<Robot>>,
+    ) -> Result<Sourced<Option<Robot>>, ScenarioError> {
+        let Some(tables) = &self.raw.plant_factors else {
+            return Ok(plant);
+        };
+        let modules = model.robot.modules.len();
+        if tables.get_ref().len() != modules {
+            return Err(c
+                .invalid(
+                    &tables.span(),
+                    "plant_factors",
+                    format!(
+                        "has {} tables, the robot has {modules} modules: give one                          [[plant_factors]] per module",
+                        tables.get_ref().len()
+                    ),
+                )
+                .into());
+        }
+        let factors: Vec<ModuleFactors> = tables
+            .get_ref()
+            .iter()
+            .map(|t| {
+                let t = t.get_ref();
+                ModuleFactors {
+                    stiffness: t.stiffness,
+                    damping: t.damping,
+                    mass: t.mass,
+                }
+            })
+            .collect();
+        let base = plant.value.as_ref().unwrap_or(&model.robot);
+        let mut scaled = uncertainty::scaled(base, &factors).map_err(|error| {
+            let span = match &error {
+                PlantError::Factor { module, .. } | PlantError::Range { module, .. } => tables
+                    .get_ref()
+                    .get(module - 1)
+                    .map_or(tables.span(), Spanned::span),
+                PlantError::Count { .. } => tables.span(),
+            };
+            c.invalid(&span, "plant_factors", error.to_string())
+        })?;
+        scaled.name = format!("{} × plant_factors", base.name);
+        Ok(Sourced::new(Some(scaled), Source::Scenario))
+    }
+
+    /// The file's `[sensor_noise]` (standard deviations on `q` \[m\] and `q̇` \[m/s\],
+    /// the seed of the draws), if given.
+    fn sensor_noise(&self, c: &Checker<'_>) -> Result<Option<SensorNoise>, FileError> {
+        let Some(table) = &self.raw.sensor_noise else {
+            return Ok(None);
+        };
+        let t = table.get_ref();
+        let number = |v: &Option<Spanned<f64>>, field: &str, limit: &Limit| {
+            v.as_ref()
+                .map(|v| c.within(v, &format!("sensor_noise.{field}"), limit))
+                .transpose()
+                .map(|v| v.unwrap_or(0.0))
+        };
+        let q = number(&t.q, "q", &crate::verify::spec::SENSOR_NOISE_M)?;
+        let qd = number(&t.qd, "qd", &crate::verify::spec::SENSOR_NOISE_M_PER_S)?;
+        let seed = match &t.seed {
+            Some(seed) => {
+                c.integer_within(seed, "sensor_noise.seed", &crate::verify::spec::SEED)? as u64
+            }
+            None => 0,
+        };
+        Ok(Some(SensorNoise { q, qd, seed }))
     }
 
     /// The file's `safety` (or its old spelling `hold_correction = true | false`), if given.

@@ -295,6 +295,18 @@ pub struct SettingsReport {
     /// The robot whose physics a simulation integrates, when it is not the controller's
     /// (`None`: the plant is the robot above).
     pub plant: Option<Sourced<Described>>,
+    /// The noise on the state the controller samples (not written without noise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensor_noise: Option<NoiseReport>,
+}
+
+/// The sensor noise of a simulation: standard deviations on `q` \[m\] and `q̇` \[m/s\]
+/// and the seed of its draws.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct NoiseReport {
+    pub q: f64,
+    pub qd: f64,
+    pub seed: u64,
 }
 
 /// How a settings report names a file: its absolute path, so that a later `softcbf plot`
@@ -372,6 +384,14 @@ impl SettingsReport {
             parts.push(format!(
                 "plant {} ({}) ({})",
                 plant.value.name, plant.value.file, plant.source
+            ));
+        }
+        if let Some(noise) = &self.sensor_noise {
+            parts.push(format!(
+                "sensor noise σ_q = {} m, σ_q̇ = {} m/s (seed {})",
+                limits::short(noise.q),
+                limits::short(noise.qd),
+                noise.seed
             ));
         }
         if let Some(i) = &self.integrator {

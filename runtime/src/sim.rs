@@ -394,6 +394,11 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
                 sources.plant,
             )
         }),
+        sensor_noise: scenario.sensor_noise.map(|n| crate::settings::NoiseReport {
+            q: n.q,
+            qd: n.qd,
+            seed: n.seed,
+        }),
     }
 }
 

@@ -855,6 +855,7 @@ pub fn run_settings_report(
         integrator: None,
         record_period: None,
         plant: None,
+        sensor_noise: None,
     }
 }
 

@@ -17,6 +17,7 @@ use crate::scenario::ScenarioFile;
 use crate::sim::simulate;
 use crate::verify::draw::draw;
 use crate::verify::report::{report, report_json};
+use crate::verify::search::cli::{SearchCommand, is_search_shard, search_command};
 use crate::verify::spec::{RUNS, SEED, VerifyOverrides, VerifySpec};
 use crate::verify::table::{self, Batch, Manifest, read, runs_csv, shard_range, timing_csv, write};
 use crate::verify::{RunRow, figures, run_batch};
@@ -65,6 +66,17 @@ struct BatchArgs {
     /// Output directory.
     #[arg(long, default_value = "verify")]
     out: PathBuf,
+    /// Search for the worst case instead of drawing uniformly: `--runs` is the budget
+    /// (docs/verify.md, "Searching for the worst case").
+    #[arg(long)]
+    search: bool,
+    /// With --search: split the budget into this many independent searches (default: the
+    /// shards' count, or 1); `--shard K/M` runs a slice of them.
+    #[arg(long, requires = "search")]
+    islands: Option<i64>,
+    /// With --search: candidates per generation (default: twice the variables, 12 to 40).
+    #[arg(long, requires = "search")]
+    population: Option<i64>,
 }
 
 #[derive(Args)]
@@ -115,6 +127,16 @@ fn load(
     seed: Option<i64>,
     duration: Option<f64>,
 ) -> Result<(Model, VerifySpec), String> {
+    load_file(path, runs, seed, duration).map(|(_, model, spec)| (model, spec))
+}
+
+/// The scenario file, its model and its checked spec, with the command line's overrides.
+fn load_file(
+    path: &Path,
+    runs: Option<i64>,
+    seed: Option<i64>,
+    duration: Option<f64>,
+) -> Result<(ScenarioFile, Model, VerifySpec), String> {
     let runs = runs
         .map(|n| RUNS.check_integer(n).map_err(|m| format!("--runs: {m}")))
         .transpose()?;
@@ -139,7 +161,7 @@ fn load(
     };
     let spec =
         VerifySpec::from_file(&file, &model, &overrides, &robot_text).map_err(|e| e.to_string())?;
-    Ok((model, spec))
+    Ok((file, model, spec))
 }
 
 /// `K/M` with `0 ≤ K < M`.
@@ -230,6 +252,21 @@ fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
         );
     };
     let (shard, slices) = args.shard.as_deref().map_or(Ok((0, 1)), parse_shard)?;
+    if args.search {
+        let (file, model, spec) = load_file(path, args.runs, args.seed, args.duration)?;
+        let command = SearchCommand {
+            file,
+            model,
+            spec,
+            islands: args.islands,
+            shard: args.shard.is_some().then_some((shard, slices)),
+            population: args.population,
+            threads: args.threads,
+            duration: args.duration,
+            out: args.out,
+        };
+        return search_command(command, console);
+    }
     let (model, spec) = load(path, args.runs, args.seed, args.duration)?;
     output_directory(&args.out, "--out")?;
     let range = shard_range(spec.runs, shard, slices);
@@ -361,6 +398,9 @@ fn summarize(
 }
 
 fn merge_command(args: MergeArgs, console: &mut Console) -> Result<u8, String> {
+    if args.dirs.first().is_some_and(|dir| is_search_shard(dir)) {
+        return crate::verify::search::cli::merge_command(&args.dirs, &args.out, console);
+    }
     output_directory(&args.out, "--out")?;
     let (batch, rows) = table::merge(&args.dirs).map_err(|e| e.to_string())?;
     let mut written = Vec::new();

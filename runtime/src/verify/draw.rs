@@ -60,7 +60,8 @@ fn in_box(draws: &mut Xoshiro256PlusPlus, bounds: &Bounds) -> Vec<f64> {
 }
 
 /// The draws of run `run` of `spec`'s batch on `model`. The draws come in a fixed order
-/// (set point, initial state until one lies in the safe set, factors, noise seed), each
+/// (set point, initial `q` and `q̇` until the start is one the guarantee covers
+/// ([`crate::verify::start`]), factors, noise seed), each
 /// from the run's own generator, so a run does not depend on any other.
 pub fn draw(model: &Model, spec: &VerifySpec, run: usize) -> Result<Draw, String> {
     let seed = run_seed(spec.seed, run);
@@ -75,31 +76,37 @@ pub fn draw(model: &Model, spec: &VerifySpec, run: usize) -> Result<Draw, String
         Some(bounds) => in_box(&mut draws, bounds),
         None => scenario.reference.final_target().to_vec(),
     };
-    let mut barriers = vec![0.0; model.nb()];
+    // Initial q and q̇ drawn together until the start is one the guarantee covers
+    // (`StartSet`); a start that is not drawn is checked once.
     let mut initial_q = scenario.initial_q.clone();
-    if let Some(bounds) = &spec.initial_q {
-        let mut found = false;
-        for _ in 0..INITIAL_STATE_TRIES {
+    let mut initial_qd = scenario.initial_qd.clone();
+    let drawn = spec.initial_q.is_some() || spec.initial_qd.is_some();
+    let tries = if drawn { INITIAL_STATE_TRIES } else { 1 };
+    let mut problem = None;
+    for _ in 0..tries {
+        if let Some(bounds) = &spec.initial_q {
             initial_q = in_box(&mut draws, bounds);
-            model
-                .generated
-                .barriers(&model.params, &initial_q, &mut barriers);
-            if barriers.iter().all(|&b| b >= 0.0) {
-                found = true;
-                break;
-            }
         }
-        if !found {
-            return Err(format!(
-                "no initial q inside the safe set in {INITIAL_STATE_TRIES} draws from the \
-                 box `initial_q_min`..`initial_q_max`: move the box into the safe set"
-            ));
+        if let Some(bounds) = &spec.initial_qd {
+            initial_qd = in_box(&mut draws, bounds);
+        }
+        problem = spec.start.problem(model, &initial_q, &initial_qd);
+        if problem.is_none() {
+            break;
         }
     }
-    let initial_qd = match &spec.initial_qd {
-        Some(bounds) => in_box(&mut draws, bounds),
-        None => scenario.initial_qd.clone(),
-    };
+    if let Some(problem) = problem {
+        return Err(if drawn {
+            format!(
+                "no initial state the guarantee covers in {INITIAL_STATE_TRIES} draws from \
+                 the boxes `initial_q_min`..`initial_q_max`, `initial_qd_min`..\
+                 `initial_qd_max` (the last: {problem}): move the boxes into the safe set, \
+                 slow the starts down"
+            )
+        } else {
+            format!("the scenario's initial state is not one the guarantee covers: {problem}")
+        });
+    }
     let factors = if spec.parameter_errors {
         let u = model.robot.uncertainty;
         (0..model.robot.modules.len())

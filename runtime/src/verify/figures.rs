@@ -103,6 +103,8 @@ struct Axis {
     scale: Scale,
     ticks: Vec<f64>,
     minor: Vec<f64>,
+    /// The value standing for `-∞` (its tick is labelled so), if any.
+    infinity: Option<f64>,
 }
 
 impl Axis {
@@ -113,6 +115,7 @@ impl Axis {
             scale: Scale::Linear,
             ticks: Vec::new(),
             minor: Vec::new(),
+            infinity: None,
         }
     }
 
@@ -165,6 +168,7 @@ impl Axis {
             scale: Scale::SymLog(x0),
             ticks,
             minor,
+            infinity: None,
         }
     }
 
@@ -178,6 +182,9 @@ impl Axis {
 
     /// The label of tick `v`.
     fn label(&self, v: f64) -> String {
+        if self.infinity == Some(v) {
+            return "−∞".to_string();
+        }
         match self.scale {
             Scale::SymLog(_) => decade_label(v),
             Scale::Linear => {
@@ -264,6 +271,8 @@ enum Marker {
     Bar,
     /// A dot (scatter).
     Dot,
+    /// A line (curve).
+    Line,
 }
 
 /// One line of a legend: its colour, its sample and its text.
@@ -371,10 +380,26 @@ struct Scatter {
     legend: Vec<Entry>,
 }
 
+/// A search's progress: the lowest barrier found so far against the runs spent.
+struct Progress {
+    title: String,
+    x: Axis,
+    y: Axis,
+    threshold: Option<f64>,
+    threshold_text: String,
+    /// Per group: the steps of its lowest barrier so far, `(runs spent, mm)`; a run that
+    /// left the model's domain is drawn at `floor`.
+    curves: Vec<Vec<(f64, f64)>>,
+    /// Where `-∞` is drawn \[mm\], if any run reached it.
+    floor: Option<f64>,
+    legend: Vec<Entry>,
+}
+
 /// One figure, ready to draw on any backend.
 enum Figure {
     Histogram(Histogram),
     Scatter(Scatter),
+    Progress(Progress),
 }
 
 /// Rows of the legend, and whether it is laid out in two columns.
@@ -404,6 +429,7 @@ impl Figure {
         match self {
             Figure::Histogram(h) => &h.legend,
             Figure::Scatter(s) => &s.legend,
+            Figure::Progress(p) => &p.legend,
         }
     }
 
@@ -411,6 +437,7 @@ impl Figure {
         match self {
             Figure::Histogram(h) => &h.title,
             Figure::Scatter(s) => &s.title,
+            Figure::Progress(p) => &p.title,
         }
     }
 
@@ -558,6 +585,111 @@ impl Figure {
         })
     }
 
+    /// The progress of a search: `scores[g]` are group `g`'s runs' lowest barriers \[m\]
+    /// in the order they were spent (`-∞`: the state left the model's domain).
+    fn progress(scores: &[Vec<f64>], groups: &[String], threshold: f64) -> Figure {
+        let x0 = LINEAR_WIDTH_MM;
+        let threshold_mm = threshold.is_finite().then_some(threshold * 1e3);
+        let mut steps: Vec<Vec<(f64, f64)>> = Vec::new();
+        let (mut lo, mut hi) = (0.0f64, 0.0f64);
+        let mut infinite = false;
+        let mut most = 1usize;
+        for group in scores {
+            let mut best = f64::INFINITY;
+            let mut curve = Vec::new();
+            for (k, &v) in group.iter().enumerate() {
+                let v = if v.is_nan() { f64::NEG_INFINITY } else { v };
+                if v < best || k == 0 {
+                    best = best.min(v);
+                    curve.push(((k + 1) as f64, best * 1e3));
+                }
+            }
+            if let Some(&(_, last)) = curve.last() {
+                curve.push((group.len() as f64, last));
+            }
+            for &(_, y) in &curve {
+                if y.is_finite() {
+                    lo = lo.min(symlog(y, x0));
+                    hi = hi.max(symlog(y, x0));
+                } else {
+                    infinite = true;
+                }
+            }
+            most = most.max(group.len());
+            steps.push(curve);
+        }
+        if let Some(t) = threshold_mm {
+            lo = lo.min(symlog(t, x0));
+            hi = hi.max(symlog(t, x0));
+        }
+        let (_, height) = plot_pixels();
+        let u = padded(lo, hi, 1.0);
+        // -∞ gets a row of its own, half a decade below everything finite, labelled so.
+        let floor = infinite.then(|| symexp(u.start - 0.5, x0));
+        let start = floor.map_or(u.start, |f| symlog(f, x0) - 0.05);
+        let mut y = Axis::symlog(symexp(start, x0)..symexp(u.end, x0), x0, height, Y_TICK_GAP);
+        if let Some(f) = floor {
+            let finite = symexp(u.start, x0);
+            y.ticks.retain(|&t| t >= finite);
+            y.minor.retain(|&t| t >= finite);
+            y.ticks.insert(0, f);
+            y.infinity = Some(f);
+            for curve in &mut steps {
+                for point in curve.iter_mut() {
+                    if !point.1.is_finite() {
+                        point.1 = f;
+                    }
+                }
+            }
+        }
+        let threshold_text = threshold_text(threshold);
+        let legend = steps
+            .iter()
+            .enumerate()
+            .map(|(g, curve)| {
+                let name = groups
+                    .get(g)
+                    .cloned()
+                    .unwrap_or_else(|| format!("group {g}"));
+                let runs = scores.get(g).map_or(0, Vec::len);
+                let first = scores.get(g).and_then(|s| {
+                    s.iter()
+                        .position(|&v| v.is_nan() || v < threshold)
+                        .map(|k| k + 1)
+                });
+                let worst = curve.last().map(|p| p.1);
+                let worst = match (worst, floor) {
+                    (None, _) => "no runs".to_string(),
+                    (Some(w), Some(f)) if w == f => "−∞ (left the model's domain)".to_string(),
+                    (Some(w), _) => format!("{} m", signed(&format!("{:.2e}", w * 1e-3))),
+                };
+                let first = first.map_or_else(
+                    || "none below the threshold".to_string(),
+                    |k| format!("first below the threshold after {}", runs_text(k)),
+                );
+                Entry {
+                    colour: colour(g),
+                    marker: Marker::Line,
+                    text: format!("{name}: lowest {worst} in {}; {first}", runs_text(runs)),
+                }
+            })
+            .collect();
+        let total: usize = scores.iter().map(Vec::len).sum();
+        Figure::Progress(Progress {
+            title: format!(
+                "Search for the worst case: lowest barrier found so far ({})",
+                runs_text(total)
+            ),
+            x: Axis::linear(0.0..(most as f64).max(1.0)),
+            y,
+            threshold: threshold_mm,
+            threshold_text,
+            curves: steps,
+            floor,
+            legend,
+        })
+    }
+
     /// Draws the figure on `root`.
     fn draw<DB: DrawingBackend>(&self, root: &Area<DB>) -> Result<(), String> {
         let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
@@ -577,6 +709,7 @@ impl Figure {
         match self {
             Figure::Histogram(h) => draw_histogram(root, &chart, h),
             Figure::Scatter(s) => draw_scatter(root, &chart, s),
+            Figure::Progress(p) => draw_progress(root, &chart, p),
         }
     }
 }
@@ -609,6 +742,12 @@ fn draw_legend<DB: DrawingBackend>(
             }
             Marker::Dot => {
                 area.draw(&Circle::new((x + 14, y), 5, entry.colour.filled()))?;
+            }
+            Marker::Line => {
+                area.draw(&PathElement::new(
+                    vec![(x, y), (x + 28, y)],
+                    entry.colour.stroke_width(3),
+                ))?;
             }
         }
         area.draw(&Text::new(entry.text.clone(), (x + 38, y), font.clone()))?;
@@ -880,6 +1019,103 @@ fn draw_scatter<DB: DrawingBackend>(
     Ok(())
 }
 
+/// Draws the progress `p` in `area` (a part of `root`).
+fn draw_progress<DB: DrawingBackend>(
+    root: &Area<DB>,
+    area: &Area<DB>,
+    p: &Progress,
+) -> Result<(), String> {
+    let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
+    let y_desc = format!(
+        "lowest barrier found so far [mm]  (symmetric log, linear within ±{} mm)",
+        decade_label(LINEAR_WIDTH_MM)
+    );
+    let mut chart = build_chart(
+        area,
+        &p.x,
+        &p.y,
+        "runs spent on the group (generation by generation)",
+        &y_desc,
+    )?;
+    let (x_range, y_range) = (p.x.range.clone(), p.y.range.clone());
+    if let Some(t) = p.threshold.filter(|&t| t > y_range.start) {
+        chart
+            .draw_series([Rectangle::new(
+                [(x_range.start, y_range.start), (x_range.end, t)],
+                UNSAFE.mix(0.07).filled(),
+            )])
+            .map_err(e)?;
+    }
+    chart
+        .draw_series(LineSeries::new(
+            [(x_range.start, 0.0), (x_range.end, 0.0)],
+            RGBColor(120, 120, 120).stroke_width(1),
+        ))
+        .map_err(e)?;
+    let (plot_x, _) = chart.plotting_area().get_pixel_range();
+    if let Some(f) = p.floor {
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(x_range.start, f), (x_range.end, f)],
+                3,
+                4,
+                BLACK.stroke_width(1),
+            ))
+            .map_err(e)?;
+        let (_, py) = chart.backend_coord(&(x_range.end, f));
+        note(
+            root,
+            "−∞: the state left the model's domain",
+            (plot_x.end - 6, py - 4),
+            Pos::new(HPos::Right, VPos::Bottom),
+            BLACK,
+        )
+        .map_err(e)?;
+    }
+    for (g, curve) in p.curves.iter().enumerate() {
+        // A step: each lowest holds until the next.
+        let mut path = Vec::new();
+        for (k, &(x, y)) in curve.iter().enumerate() {
+            if k > 0 {
+                path.push((x, path.last().map_or(y, |p: &(f64, f64)| p.1)));
+            }
+            path.push((x, y));
+        }
+        chart
+            .draw_series(LineSeries::new(path, colour(g).stroke_width(3)))
+            .map_err(e)?;
+        chart
+            .draw_series(
+                curve
+                    .iter()
+                    .take(curve.len().saturating_sub(1))
+                    .map(|&pt| Circle::new(pt, 4, colour(g).filled())),
+            )
+            .map_err(e)?;
+    }
+    if let Some(t) = p.threshold {
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(x_range.start, t), (x_range.end, t)],
+                8,
+                5,
+                UNSAFE.stroke_width(2),
+            ))
+            .map_err(e)?;
+        let (_, py) = chart.backend_coord(&(x_range.end, t));
+        let text = format!("threshold {}: unsafe below", p.threshold_text);
+        note(
+            root,
+            &text,
+            (plot_x.end - 6, py + 5),
+            Pos::new(HPos::Right, VPos::Top),
+            UNSAFE,
+        )
+        .map_err(e)?;
+    }
+    Ok(())
+}
+
 /// Draws `figure` into `<stem>.png` and `<stem>.svg` in `dir` and returns their paths.
 fn write_figure(dir: &Path, stem: &str, figure: &Figure) -> Result<Vec<PathBuf>, PlotError> {
     let size = figure.size();
@@ -937,6 +1173,25 @@ pub fn write_figures(
         &Figure::scatter(rows, groups, threshold),
     )?);
     Ok(written)
+}
+
+/// Draws the figure of a search into `dir` (created if missing) and returns the paths
+/// written, `search.png` and `search.svg`: per group, the lowest barrier found so far
+/// against the runs spent. `scores[g]` are group `g`'s (named `groups[g]`) runs' lowest
+/// barriers \[m\] in the order they were spent, `-∞` (or NaN) for a run whose state left
+/// the model's domain; `threshold` \[m\] is drawn. Any input gives a valid figure.
+pub fn write_search_figure(
+    dir: &Path,
+    scores: &[Vec<f64>],
+    groups: &[String],
+    threshold: f64,
+) -> Result<Vec<PathBuf>, PlotError> {
+    register_fonts()?;
+    std::fs::create_dir_all(dir).map_err(|source| PlotError::Io {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
+    write_figure(dir, "search", &Figure::progress(scores, groups, threshold))
 }
 
 #[cfg(test)]
@@ -1080,6 +1335,42 @@ mod tests {
             &dir,
         );
         assert_written(&write_figures(&dir, &equal, &groups, 0.0).unwrap(), &dir);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn search_figures_of_any_input_are_written() {
+        let dir = temp_dir("search");
+        let groups = vec![
+            "paper @ 1000 Hz".to_string(),
+            "sampled @ 33.3 Hz".to_string(),
+        ];
+        let cases: Vec<Vec<Vec<f64>>> = vec![
+            vec![],
+            vec![vec![], vec![0.0; 3]],
+            vec![
+                vec![0.02, 1e-4, -3e-6, f64::NEG_INFINITY, 0.01],
+                vec![0.03, 0.01, f64::NAN, 2e-11],
+            ],
+            vec![vec![f64::NEG_INFINITY; 4]],
+        ];
+        for scores in &cases {
+            let files = write_search_figure(&dir, scores, &groups, -1e-6).unwrap();
+            assert_eq!(files.len(), 2);
+            for file in &files {
+                assert!(std::fs::metadata(file).unwrap().len() > 0);
+            }
+        }
+        // The -∞ row is labelled as such, below every finite value.
+        let Figure::Progress(p) = Figure::progress(&cases[2], &groups, -1e-6) else {
+            panic!("not a progress figure");
+        };
+        let floor = p.floor.unwrap();
+        assert_eq!(p.y.label(floor), "−∞");
+        assert!(p.y.ticks.iter().all(|&t| t >= floor));
+        assert!(floor < -3e-3 && p.y.range.start < floor);
+        // Each curve steps down to the lowest so far: group 1 reaches -∞ at its NaN.
+        assert_eq!(p.curves[1].last().unwrap(), &(4.0, floor));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

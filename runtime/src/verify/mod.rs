@@ -14,7 +14,9 @@ pub mod cli;
 pub mod draw;
 pub mod figures;
 pub mod report;
+pub mod search;
 pub mod spec;
+pub mod start;
 pub mod table;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -111,6 +113,22 @@ pub fn run_batch(
 pub fn run_one(model: &Model, spec: &VerifySpec, run: usize) -> Result<Finished, VerifyError> {
     let start = Instant::now();
     let draw = draw(model, spec, run).map_err(|message| VerifyError::Run { run, message })?;
+    let mut finished = evaluate(model, spec, run, draw)?;
+    finished.wall_time = start.elapsed().as_secs_f64();
+    Ok(finished)
+}
+
+/// Runs the closed loop `draw` describes (its group's scenario with its set point, start,
+/// plant and noise) on `model` and returns its row, numbered `run`. The same function for
+/// a batch's draws and a search's candidates, so that both measure the lowest barrier
+/// alike.
+pub fn evaluate(
+    model: &Model,
+    spec: &VerifySpec,
+    run: usize,
+    draw: Draw,
+) -> Result<Finished, VerifyError> {
+    let start = Instant::now();
     let scenario = spec
         .scenario_for(model, &draw)
         .map_err(|message| VerifyError::Run { run, message })?;

@@ -14,6 +14,7 @@ use crate::scenario::{
     Overrides, Scenario, ScenarioError, ScenarioFile, SensorNoise, state_vector,
 };
 use crate::verify::draw::Draw;
+use crate::verify::start::StartSet;
 
 /// An array of numbers, each with its span.
 type RawVector = Spanned<Vec<Spanned<f64>>>;
@@ -47,7 +48,8 @@ pub const DEFAULT_RUNS: usize = 1000;
 pub const DEFAULT_RECORD_PERIOD: f64 = 1e-3;
 /// Default threshold: a run whose lowest barrier falls below it is unsafe (m or rad).
 pub const DEFAULT_THRESHOLD: f64 = -1e-6;
-/// Draws of an initial state before giving up on finding one inside the safe set.
+/// Draws of an initial state before giving up on finding one the guarantee covers
+/// ([`StartSet`]).
 pub const INITIAL_STATE_TRIES: usize = 1000;
 
 /// A box `min ≤ x ≤ max`, per coordinate.
@@ -114,6 +116,8 @@ pub struct VerifySpec {
     pub threshold: f64,
     /// The safety modes × control periods; run `i` belongs to group `i mod groups`.
     pub groups: Vec<Group>,
+    /// The initial states the guarantee covers: every drawn start lies in it.
+    pub start: StartSet,
 }
 
 /// What the command line changes in `[verify]`.
@@ -349,6 +353,9 @@ impl VerifySpec {
                 });
             }
         }
+        let start = StartSet::new(model, &base.controller).map_err(|message| {
+            ScenarioError::Option(format!("the scenario's controller: {message}"))
+        })?;
         Ok(VerifySpec {
             file: file.path().display().to_string(),
             fingerprint: fingerprint(&[file.text(), robot_text]),
@@ -361,6 +368,7 @@ impl VerifySpec {
             sensor_noise,
             threshold,
             groups,
+            start,
         })
     }
 
