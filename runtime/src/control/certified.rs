@@ -69,11 +69,9 @@ impl Uncertified {
     }
 }
 
-/// Reports why a bound failed when `SOFTCBF_DEBUG_CERTIFIED` is set (development aid).
+/// Why a bound failed; `place` names the step (for a reader of the code).
 fn failed(why: Uncertified, place: &str) -> Uncertified {
-    if std::env::var_os("SOFTCBF_DEBUG_CERTIFIED").is_some() {
-        eprintln!("certified: {why:?} at {place}");
-    }
+    let _ = place;
     why
 }
 
@@ -96,8 +94,7 @@ const FIRST_CELL: f64 = 0.25;
 /// rounding is far below it).
 const ROUNDING: f64 = 1.0 + 1e-12;
 
-/// The linear model's motion over each cell for the commands of a region (`center ± radius`
-/// of `u`): boxes of `e`, `ė`, `ë`, `e⃛` over the cell, `nq` per cell.
+/// The linear model's motion over each cell for one command: boxes of `e`, `ė`, `ë`, `e⃛` over the cell, `nq` per cell.
 struct Cells {
     e: Vec<Interval>,
     v: Vec<Interval>,
@@ -133,12 +130,9 @@ pub(super) struct CertifiedWorkspace {
     stiffness: Vec<f64>,
     /// `g₀ = f₀ + K q₀`.
     offset: Vec<f64>,
-    /// Per entry (`(S + 1) × nq²`): `Γ`, `H = Γ̇`, `Ḣ`, `Ḧ`, `H⃛`.
+    /// Per entry (`(S + 1) × nq²`): `Γ` and `H = Γ̇`.
     gamma: Vec<f64>,
     h: Vec<f64>,
-    hd: Vec<f64>,
-    hdd: Vec<f64>,
-    hddd: Vec<f64>,
     /// Per entry (`(S + 1) × nq²`): `Γ₂ = ∫Γ = K⁻¹ (t I − M₀ H − D Γ)`, the response to a
     /// force growing as `t`.
     gamma2: Vec<f64>,
@@ -151,12 +145,9 @@ pub(super) struct CertifiedWorkspace {
     phi1: Vec<f64>,
     mismatch: Vec<f64>,
     residual: Vec<f64>,
-    /// The motion over each cell: the corrected prediction of the center command and of the
-    /// trust region, the response to the trust region's deviation alone (`Γ z`, …), the
-    /// uncorrected prediction of the center command, and the correction's own motion.
+    /// The motion over each cell: the corrected prediction of the command, its uncorrected
+    /// prediction, and the correction's own motion.
     center_cells: Cells,
-    full_cells: Cells,
-    spread_cells: Cells,
     plain_cells: Cells,
     delta_cells: Cells,
     /// Per cell (`S × nq`): assumed and computed bounds on `|ξ|` over `[0, t_{c+1}]`, the
@@ -174,9 +165,8 @@ pub(super) struct CertifiedWorkspace {
     /// of it; infinite: no box).
     first_center: Vec<f64>,
     shrink: f64,
-    /// The command at the center of the trust region, `u_c = τ_c − g₀`, and its radius.
+    /// The command being bounded, `u = τ − g₀`.
     center: Vec<f64>,
-    radius: Vec<f64>,
     /// Jets of one group and their result.
     q_jet: Vec<Dual>,
     v_jet: Vec<Dual>,
@@ -290,9 +280,6 @@ impl CertifiedWorkspace {
             offset: vec![0.0; nq],
             gamma: vec![0.0; s1 * nq * nq],
             h: vec![0.0; s1 * nq * nq],
-            hd: vec![0.0; s1 * nq * nq],
-            hdd: vec![0.0; s1 * nq * nq],
-            hddd: vec![0.0; s1 * nq * nq],
             gamma2: vec![0.0; s1 * nq * nq],
             free: vec![0.0; s1 * nq],
             free_v: vec![0.0; s1 * nq],
@@ -301,8 +288,6 @@ impl CertifiedWorkspace {
             mismatch: vec![0.0; s1 * nq],
             residual: vec![0.0; s1 * nq],
             center_cells: Cells::new(samples * nq),
-            full_cells: Cells::new(samples * nq),
-            spread_cells: Cells::new(samples * nq),
             plain_cells: Cells::new(samples * nq),
             delta_cells: Cells::new(samples * nq),
             xi: vec![0.0; samples * nq],
@@ -314,7 +299,6 @@ impl CertifiedWorkspace {
             first_center: vec![0.0; nq],
             shrink: f64::INFINITY,
             center: vec![0.0; nq],
-            radius: vec![0.0; nq],
             q_jet: vec![Dual::default(); nq],
             v_jet: vec![Dual::default(); nq],
             a_jet: vec![Dual::default(); nq],
@@ -462,7 +446,7 @@ pub(super) fn certified_filter(
         let dynamics = &controller.dynamics;
         let inverse_mass = &controller.inverse_mass;
         if attempt == 0 {
-            response(model, ws, inverse_mass, &dynamics.mass_matrix, qd);
+            response(model, ws, &dynamics.mass_matrix, qd);
         }
         let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
         let bounds = correction(model, ws, inverse_mass, mass, nonlinear, q).and_then(|()| {
@@ -598,14 +582,12 @@ fn first_pass_rows(controller: &mut Controller) {
 /// The right-hand side of a row that never binds.
 const INACTIVE: f64 = -1e12;
 
-/// The linear model's response at every entry: `Γ`, the impulse response `H = Γ̇` and its
-/// derivatives `Ḣ = M₀⁻¹ (I − D H − K Γ)`, `Ḧ = −M₀⁻¹ (D Ḣ + K H)`, `H⃛ = −M₀⁻¹ (D Ḧ + K Ḣ)`,
-/// the ramp response `Γ₂ = ∫Γ = K⁻¹ (t I − M₀ H − D Γ)` (from `M₀ Γ₂″ + D Γ₂′ + K Γ₂ = t I`),
+/// The linear model's response at every entry: `Γ`, the impulse response `H = Γ̇`, the ramp
+/// response `Γ₂ = ∫Γ = K⁻¹ (t I − M₀ H − D Γ)` (from `M₀ Γ₂″ + D Γ₂′ + K Γ₂ = t I`),
 /// and the free motion `a`, `ȧ`.
 fn response(
     model: &Model,
     ws: &mut CertifiedWorkspace,
-    inverse_mass: &[f64],
     mass: &[f64],
     qd: &[f64],
 ) {
@@ -614,7 +596,6 @@ fn response(
     let (d, k) = (&model.damping, &model.stiffness);
     ws.h[..nn].fill(0.0);
     ws.gamma[..nn].fill(0.0);
-    ws.hd[..nn].copy_from_slice(inverse_mass);
     ws.free[..nq].fill(0.0);
     ws.free_v[..nq].copy_from_slice(qd);
     for j in 0..ws.samples {
@@ -628,30 +609,6 @@ fn response(
     for j in 0..=ws.samples {
         let at = j * nn;
         let t = ws.time(j);
-        if j > 0 {
-            for r in 0..nq {
-                for c in 0..nq {
-                    let identity = if r == c { 1.0 } else { 0.0 };
-                    ws.scratch[r * nq + c] =
-                        identity - d[r] * ws.h[at + r * nq + c] - k[r] * ws.gamma[at + r * nq + c];
-                }
-            }
-            product(inverse_mass, &ws.scratch, &mut ws.hd[at..at + nn], nq);
-        }
-        for r in 0..nq {
-            for c in 0..nq {
-                ws.scratch[r * nq + c] =
-                    -(d[r] * ws.hd[at + r * nq + c] + k[r] * ws.h[at + r * nq + c]);
-            }
-        }
-        product(inverse_mass, &ws.scratch, &mut ws.hdd[at..at + nn], nq);
-        for r in 0..nq {
-            for c in 0..nq {
-                ws.scratch[r * nq + c] =
-                    -(d[r] * ws.hdd[at + r * nq + c] + k[r] * ws.hd[at + r * nq + c]);
-            }
-        }
-        product(inverse_mass, &ws.scratch, &mut ws.hddd[at..at + nn], nq);
         product(mass, &ws.h[at..at + nn], &mut ws.scratch, nq);
         for r in 0..nq {
             for c in 0..nq {
@@ -784,20 +741,16 @@ fn correction(
 /// Which motion [`derivatives`] gives.
 #[derive(Clone, Copy, PartialEq)]
 enum Motion {
-    /// The corrected prediction of the center command (`radius` may widen it to the trust
-    /// region).
+    /// The corrected prediction of the command.
     Corrected,
-    /// The response to a deviation `z` of the command alone (`Γ z`, …).
-    Spread,
     /// The uncorrected prediction of the center command.
     Plain,
     /// The correction's own motion (`Γ φ₀ + Γ₂ φ₁`, …).
     Correction,
 }
 
-/// The motion `(e, ė, ë, e⃛, e⁗)` of kind `motion` at entry `j` for the command
-/// `center + z`, `z` in `±radius` (the center only for [`Motion::Corrected`] and
-/// [`Motion::Plain`]): boxes, `nq` each, into `out[i][order]`. With the correction `φ(t)`
+/// The motion `(e, ė, ë, e⃛, e⁗)` of kind `motion` at entry `j` for the command `center`:
+/// boxes (the value widened by its rounding), `nq` each, into `out[i][order]`. With the correction `φ(t)`
 /// held, `ë = M₀⁻¹ (u + φ − D ė − K e)`, `e⃛ = M₀⁻¹ (φ₁ − D ë − K ė)`, `e⁗ = −M₀⁻¹ (D e⃛ + K ë)`.
 #[allow(clippy::too_many_arguments)]
 fn derivatives(
@@ -806,7 +759,6 @@ fn derivatives(
     inverse_mass: &[f64],
     j: usize,
     motion: Motion,
-    radius: &[f64],
     out: &mut [[Interval; 5]; 64],
 ) {
     let nq = ws.nq;
@@ -816,7 +768,6 @@ fn derivatives(
     let (d, k) = (&model.damping, &model.stiffness);
     let (free, correct, centered) = match motion {
         Motion::Corrected => (true, true, true),
-        Motion::Spread => (false, false, false),
         Motion::Plain => (true, false, true),
         Motion::Correction => (false, true, false),
     };
@@ -867,19 +818,10 @@ fn derivatives(
     }
     apply(inverse_mass, &scratch[..nq], &mut snap[..nq]);
     let values: [&[f64]; 5] = [&e, &ve, &acc, &jerk, &snap];
-    let matrices: [&[f64]; 5] = [
-        &ws.gamma[at..at + nn],
-        &ws.h[at..at + nn],
-        &ws.hd[at..at + nn],
-        &ws.hdd[at..at + nn],
-        &ws.hddd[at..at + nn],
-    ];
     for order in 0..5 {
         for i in 0..nq {
-            let row = &matrices[order][i * nq..(i + 1) * nq];
-            let spread: f64 = row.iter().zip(radius).map(|(a, r)| a.abs() * r).sum();
             let value = values[order][i];
-            let slack = spread + value.abs() * 1e-12 + 1e-300;
+            let slack = value.abs() * 1e-12 + 1e-300;
             out[i][order] = Interval::around(value, slack * ROUNDING);
         }
     }
@@ -898,7 +840,6 @@ fn linear_cells(model: &Model, ws: &mut CertifiedWorkspace, inverse_mass: &[f64]
         return;
     }
     let k = &model.stiffness;
-    let zero_radius = vec![0.0; nq];
     let mut left = [[Interval::ZERO; 5]; 64];
     let mut right = [[Interval::ZERO; 5]; 64];
     let energy = |x: &[[Interval; 5]; 64], high: usize| -> f64 {
@@ -912,26 +853,16 @@ fn linear_cells(model: &Model, ws: &mut CertifiedWorkspace, inverse_mass: &[f64]
         }
         total
     };
-    let radius = ws.radius.clone();
-    for variant in 0..5 {
-        let (motion, r) = match variant {
-            0 => (Motion::Corrected, &zero_radius),
-            1 => (Motion::Corrected, &radius),
-            2 => (Motion::Spread, &radius),
-            3 => (Motion::Plain, &zero_radius),
-            _ => (Motion::Correction, &zero_radius),
-        };
-        derivatives(model, ws, inverse_mass, 0, motion, r, &mut left);
+    for motion in [Motion::Corrected, Motion::Plain, Motion::Correction] {
+        derivatives(model, ws, inverse_mass, 0, motion, &mut left);
         for c in 0..ws.samples {
             let h = ws.cell(c);
-            derivatives(model, ws, inverse_mass, c + 1, motion, r, &mut right);
+            derivatives(model, ws, inverse_mass, c + 1, motion, &mut right);
             let (jerk_energy, snap_energy) = (energy(&left, 3), energy(&left, 4));
-            let cells = match variant {
-                0 => &mut ws.center_cells,
-                1 => &mut ws.full_cells,
-                2 => &mut ws.spread_cells,
-                3 => &mut ws.plain_cells,
-                _ => &mut ws.delta_cells,
+            let cells = match motion {
+                Motion::Corrected => &mut ws.center_cells,
+                Motion::Plain => &mut ws.plain_cells,
+                Motion::Correction => &mut ws.delta_cells,
             };
             for i in 0..nq {
                 let minv = inverse_mass[i * nq + i].max(0.0);
@@ -965,7 +896,7 @@ fn linear_cells(model: &Model, ws: &mut CertifiedWorkspace, inverse_mass: &[f64]
                     cells.a[at].lo().max(-potential),
                     cells.a[at].hi().min(potential),
                 );
-                if variant == 1 {
+                if motion == Motion::Corrected {
                     ws.acc_sup[at] = sup_acc;
                 }
             }
@@ -1042,7 +973,6 @@ fn error_bounds(
     } else {
         ws.xi.fill(XI_FLOOR);
     }
-    let groups = ws.groups.clone();
     let frobenius: f64 = inverse_mass.iter().map(|x| x * x).sum::<f64>().sqrt();
     ws.mass_floor0 = if frobenius > 0.0 {
         1.0 / (frobenius * ROUNDING)
@@ -1066,8 +996,8 @@ fn error_bounds(
             let (mut qh, mut vh) = (Interval::NAN, Interval::NAN);
             for c in 0..s {
                 let at = c * nq + i;
-                join(&mut qh, ws.full_cells.e[at].widened(ws.xi[at]) + q0[i]);
-                join(&mut vh, ws.full_cells.v[at]);
+                join(&mut qh, ws.center_cells.e[at].widened(ws.xi[at]) + q0[i]);
+                join(&mut vh, ws.center_cells.v[at]);
             }
             ws.hull_q[i] = qh;
             ws.hull_v[i] = vh;
@@ -1096,14 +1026,15 @@ fn error_bounds(
             return Err(failed(Uncertified::Tube, "kappa"));
         }
         ws.damping_share = 1.0 - kappa;
-        for group in &groups {
+        for g in 0..ws.groups.len() {
+            let group = ws.groups[g].clone();
             let mut plain = [[Interval::NAN; 4]; 64];
             let mut base = [[Interval::NAN; 3]; 64];
             let mut spread = [[0.0f64; 3]; 64];
             for c in group.clone() {
                 for i in 0..nq {
                     let at = c * nq + i;
-                    let (p, f) = (&ws.plain_cells, &ws.full_cells);
+                    let (p, f) = (&ws.plain_cells, &ws.center_cells);
                     for (k, x) in [p.e[at] + q0[i], p.v[at], p.a[at], p.jerk[at]]
                         .into_iter()
                         .enumerate()
@@ -1115,20 +1046,18 @@ fn error_bounds(
                         join(&mut base[i][k], full[k]);
                         join(&mut base[i][k], plain[i][k]);
                     }
-                    let (z, d) = (&ws.spread_cells, &ws.delta_cells);
-                    let now = [
-                        z.e[at].mag() + d.e[at].mag() + ws.xi[at],
-                        z.v[at].mag() + d.v[at].mag(),
-                        z.a[at].mag() + d.a[at].mag(),
-                    ];
+                    let d = &ws.delta_cells;
+                    let now = [d.e[at].mag() + ws.xi[at], d.v[at].mag(), d.a[at].mag()];
                     for k in 0..3 {
                         spread[i][k] = spread[i][k].max(now[k]);
                     }
                 }
             }
-            let positions: Vec<Interval> = (0..nq).map(|i| base[i][0]).collect();
-            let velocities: Vec<Interval> = (0..nq).map(|i| base[i][1]).collect();
-            if !box_in_domain(model, &positions, &velocities) {
+            let (mut positions, mut velocities) = ([Interval::ZERO; 64], [Interval::ZERO; 64]);
+            for i in 0..nq {
+                (positions[i], velocities[i]) = (base[i][0], base[i][1]);
+            }
+            if !box_in_domain(model, &positions[..nq], &velocities[..nq]) {
                 return Err(failed(Uncertified::Domain, "group outside the domain"));
             }
             // The rate of g along the uncorrected prediction but for its jerk term (q̇ = ė,
@@ -1218,36 +1147,7 @@ fn error_bounds(
                         + u.damping * model.damping[i] * base[i][1].mag()
                         + u.force;
                     ws.force[c * nq + i] = value * ROUNDING;
-                    if std::env::var_os("SOFTCBF_DEBUG_CERTIFIED2").is_some()
-                        && c == group.start
-                        && i < 3
-                    {
-                        eprintln!(
-                            "group {group:?} coord {i}: residual {residual:.2e} rate*h/2 {:.2e} jerk {jerk_share:.2e} spread {:.2e} per_body {:.2e} | v {:?} a {:?}",
-                            0.5 * rate[i] * h,
-                            ws.g_jet[i].slope.mag(),
-                            u.mass * ws.enclosure.per_body[i],
-                            plain[i][1],
-                            plain[i][2]
-                        );
-                    }
                 }
-            }
-        }
-        if std::env::var_os("SOFTCBF_DEBUG_CERTIFIED").is_some() {
-            for group in &groups {
-                let c = group.start;
-                eprintln!(
-                    "round: kappa {kappa:.3} group {group:?} force {:?} xi {:?}",
-                    ws.force[c * nq..(c + 1) * nq]
-                        .iter()
-                        .map(|x| format!("{x:.2e}"))
-                        .collect::<Vec<_>>(),
-                    ws.xi[c * nq..(c + 1) * nq]
-                        .iter()
-                        .map(|x| format!("{x:.1e}"))
-                        .collect::<Vec<_>>()
-                );
             }
         }
         // Φ and the computed |ξ| at the end of each cell: the smallest of the dissipative
@@ -1407,29 +1307,6 @@ fn certify(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) ->
     }
     ws.last_xi.copy_from_slice(&ws.xi);
     ws.have_last = true;
-    if std::env::var_os("SOFTCBF_DEBUG_MARGIN").is_some() {
-        let mut worst = (0.0, 0);
-        for (r, e) in ws.estimate.iter().enumerate() {
-            if *e > worst.0 {
-                worst = (*e, r);
-            }
-        }
-        let mm = ws.margin.iter().cloned().fold(0.0, f64::max);
-        let low = (0..s * nb)
-            .map(|r| ws.values[r] - ws.margin[r])
-            .fold(f64::INFINITY, f64::min);
-        eprintln!(
-            "  estimate max {:.3e} at sample {} barrier {}; margin max {mm:.3e}; lowest bound {low:.3e} proven {proven} start {start_covered}; tau {:?}",
-            worst.0,
-            worst.1 / nb,
-            worst.1 % nb,
-            controller
-                .tau
-                .iter()
-                .map(|x| format!("{x:.2}"))
-                .collect::<Vec<_>>()
-        );
-    }
     match (proven, start_covered) {
         (true, true) => Check::Proven,
         (true, false) => Check::Start,
