@@ -198,6 +198,10 @@ pub(super) struct CertifiedWorkspace {
     /// (the next first pass's tightening), and the last error bounds (the next fixed
     /// point's start).
     estimate: Vec<f64>,
+    /// Per barrier: the proven lower bound over the hold of the last command bounded, and
+    /// whether the last tick's command is that command, proven.
+    lowest: Vec<f64>,
+    pub(super) proven: bool,
     last_xi: Vec<f64>,
     have_last: bool,
     scratch: Vec<f64>,
@@ -319,6 +323,8 @@ impl CertifiedWorkspace {
             floor: vec![0.0; samples * nb],
             margin: vec![0.0; samples * nb],
             estimate: vec![0.0; samples * nb],
+            lowest: vec![f64::NAN; nb],
+            proven: false,
             last_xi: vec![0.0; samples * nq],
             have_last: false,
             scratch: vec![0.0; nq * nq],
@@ -337,6 +343,12 @@ impl CertifiedWorkspace {
     /// two per coordinate.
     pub(super) fn box_rows(nq: usize) -> usize {
         2 * nq
+    }
+
+    /// Per barrier, the proven lower bound of the barrier over the hold for the last command
+    /// bounded \[m\] (`nb` entries).
+    pub(super) fn lowest(&self) -> &[f64] {
+        &self.lowest
     }
 
     /// Time of entry `j` \[s\] (`t_0 = 0`).
@@ -473,7 +485,12 @@ pub(super) fn certified_filter(
             }
         };
         match (first, check) {
-            (TickStatus::Filtered, Check::Proven) => return TickStatus::Filtered,
+            (TickStatus::Filtered, Check::Proven) => {
+                if let Some(ws) = controller.certified.as_mut() {
+                    ws.proven = true;
+                }
+                return TickStatus::Filtered;
+            }
             // The rows had no common point: the relaxed command, reported as such.
             (TickStatus::Relaxed, _) => return TickStatus::Relaxed,
             (_, Check::Start) if attempt == 0 => {
@@ -585,12 +602,7 @@ const INACTIVE: f64 = -1e12;
 /// The linear model's response at every entry: `Γ`, the impulse response `H = Γ̇`, the ramp
 /// response `Γ₂ = ∫Γ = K⁻¹ (t I − M₀ H − D Γ)` (from `M₀ Γ₂″ + D Γ₂′ + K Γ₂ = t I`),
 /// and the free motion `a`, `ȧ`.
-fn response(
-    model: &Model,
-    ws: &mut CertifiedWorkspace,
-    mass: &[f64],
-    qd: &[f64],
-) {
+fn response(model: &Model, ws: &mut CertifiedWorkspace, mass: &[f64], qd: &[f64]) {
     let nq = ws.nq;
     let nn = nq * nq;
     let (d, k) = (&model.damping, &model.stiffness);
@@ -1255,9 +1267,12 @@ fn certify(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) ->
         );
     }
     // Per cell c (between entries c and c + 1): the predicted motion's barrier curvature
-    // h²/8 sup |b̈| and the error's share |J| |ξ| (ξ bounded on [0, t_{c+1}]).
+    // h²/8 sup |b̈|, the error's share |J| |ξ| (ξ bounded on [0, t_{c+1}]), and the
+    // prediction's own floating-point error (PREDICTION_SLACK). Over the cell the barrier is
+    // at least the smaller endpoint value less the cell's margin.
     let mut start_covered = true;
     let barriers = &controller.barrier_terms;
+    ws.lowest.fill(f64::INFINITY);
     for c in 0..s {
         let h = ws.cell(c);
         for k in 0..nb {
@@ -1267,22 +1282,28 @@ fn certify(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) ->
                 curvature += jac[i].mag() * ws.acc_sup[c * nq + i];
                 error += jac[i].mag() * ws.xi[c * nq + i];
             }
-            let cell_margin = (0.125 * h * h * curvature + error) * ROUNDING;
+            let b0 = barriers.values()[k];
+            let slack = PREDICTION_SLACK * (1.0 + (ws.values[c * nb + k] - b0).abs());
+            let cell_margin = (0.125 * h * h * curvature + error + slack) * ROUNDING;
             ws.margin[c * nb + k] = cell_margin;
-            if c == 0 {
-                let b0 = barriers.values()[k];
-                if b0 >= 0.0 {
-                    // The first cell from the tick's exact state: the larger endpoint bound,
-                    // or Taylor from the exact ḃ₀.
-                    let b_dot = dot(&barriers.jacobian()[k * nq..(k + 1) * nq], qd);
-                    let taylor = (b0 + b_dot * h - 0.5 * curvature * h * h).min(b0) - error;
-                    start_covered &= b0 >= cell_margin || taylor >= 0.0;
-                }
+            let end = ws.values[c * nb + k];
+            let mut lower = if c == 0 {
+                b0.min(end)
+            } else {
+                ws.values[(c - 1) * nb + k].min(end)
+            } - cell_margin;
+            if c == 0 && b0 >= 0.0 {
+                // The first cell from the tick's exact state: the endpoint bound, or Taylor
+                // from the exact ḃ₀.
+                let b_dot = dot(&barriers.jacobian()[k * nq..(k + 1) * nq], qd);
+                let taylor = (b0 + b_dot * h - 0.5 * curvature * h * h).min(b0) - error - slack;
+                lower = lower.max(taylor);
+                start_covered &= lower >= 0.0;
             }
+            ws.lowest[k] = ws.lowest[k].min(lower);
         }
     }
-    // A sample ends its cell and starts the next: the larger margin. The barrier over a
-    // cell is at least the smaller endpoint value less the cell's margin.
+    // A sample ends its cell and starts the next: the larger margin.
     for j in 0..s.saturating_sub(1) {
         for k in 0..nb {
             let next = ws.margin[(j + 1) * nb + k];
@@ -1313,6 +1334,12 @@ fn certify(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) ->
         _ => Check::Below,
     }
 }
+
+/// The prediction's floating-point error \[m\] (absolute, and relative to the excursion of
+/// the barrier): the computed linear motion and barrier values stand in for exact ones, and
+/// differ from them by rounding far below this (the hold prediction agrees with a plain
+/// integration to 1e-10 relative, tests/tests/sampled_data.rs).
+const PREDICTION_SLACK: f64 = 1e-12;
 
 /// The first pass's estimate is the last proven gap times this (a little room for the gap
 /// to grow with the command).

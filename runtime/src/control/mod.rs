@@ -929,6 +929,17 @@ impl Controller {
         (row < self.barrier_rows).then(|| row % self.nb.max(1))
     }
 
+    /// [`SafetyMode::Certified`], after a tick whose status is [`TickStatus::Filtered`]: per
+    /// barrier (`nb` entries, in the order of [`Controller::barriers`]) the proven lower
+    /// bound of the barrier over the whole hold under the command sent \[m\], every one ≥ 0
+    /// for a barrier that was ≥ 0 at the tick (docs/model.md §5). `None` otherwise.
+    pub fn certified_bound(&self) -> Option<&[f64]> {
+        self.certified
+            .as_ref()
+            .filter(|certified| certified.proven)
+            .map(|certified| certified.lowest())
+    }
+
     /// Report of the last QP solve (statuses, iterations, relaxed rows).
     pub fn qp_report(&self) -> &QpReport {
         self.qp.report()
@@ -1049,6 +1060,9 @@ pub fn tick_nominal(
     nominal: Nominal<'_>,
 ) -> TickStatus {
     controller.dynamics_valid = false;
+    if let Some(certified) = controller.certified.as_mut() {
+        certified.proven = false;
+    }
     if let Some(why) = size_problem(model, controller, q, qd, &nominal) {
         return controller.fallback(why);
     }
