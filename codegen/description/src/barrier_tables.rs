@@ -1,10 +1,12 @@
 //! The `[limits]`, `[module.limits]` and `[[obstacle]]` tables of a robot file, read and
 //! checked into [`Limits`] per module and [`Obstacle`]s (format: `robots/README.md`).
+//! Every module gets its limits: a value no table writes is the domain's default
+//! ([`Limits::domain`]).
 //!
 //! Every value is checked against its range in `crate::limits` where it is written; what
-//! depends on a module (a lower elongation limit must leave a positive backbone length, a
-//! watched corner must exist) is checked for each module the value applies to, with the
-//! error on the line that wrote it.
+//! depends on a module (an elongation limit must lie within the domain's defaults for its
+//! rest length, a watched corner must exist) is checked for each module the value applies
+//! to, with the error on the line that wrote it.
 
 use std::ops::Range;
 
