@@ -982,14 +982,17 @@ impl SymbolicModel {
              // Operations per call (add, mul, div, sqrt/trig, analytic):\n",
             self.structure.corners, self.structure.tendons, self.structure.routing
         );
-        if self.structure.has_extra_barriers() {
+        {
+            let corners: usize = self.structure.corners.iter().sum();
+            let watched: usize = self.structure.obstacles.iter().map(|o| o.watch.len()).sum();
             let at = header.find("// Operations").unwrap_or(header.len());
             header.insert_str(
                 at,
                 &format!(
-                    "// Barriers: {} ({}).\n",
+                    "// Barriers: {} ({corners} plate corners, {} limits: 3 per module, \
+                     {watched} obstacle points).\n",
                     self.barriers.len(),
-                    crate::registry::describe(&self.structure)
+                    3 * n_modules,
                 ),
             );
         }

@@ -150,19 +150,12 @@ pub fn benchmarks() -> Vec<(String, Structure)> {
     list
 }
 
-/// Two hexagonal modules with every kind of barrier, for the tests: elongation and bend
-/// limits on both modules, a half-space and a sphere, each watching a corner, the centre,
+/// Two hexagonal modules with every kind of barrier, for the tests: the elongation and bend
+/// limits every module has, a half-space and a sphere, each watching a corner, the centre,
 /// a listed point and two backbone points of each module.
 pub fn every_barrier() -> Structure {
-    use softcbf_description::barriers::{LimitFlags, ObstacleKind, ObstacleStructure, PointShape};
+    use softcbf_description::barriers::{ObstacleKind, ObstacleStructure, PointShape};
     let mut structure = Structure::new(vec![6, 6], vec![3, 3], Routing::Local);
-    structure.limits = vec![
-        LimitFlags {
-            elongation: true,
-            bend: true,
-        };
-        2
-    ];
     let watch: Vec<(usize, PointShape)> = (0..2)
         .flat_map(|i| {
             [
@@ -238,16 +231,10 @@ pub fn describe(structure: &Structure) -> String {
         structure.corners,
         structure.tendons
     );
-    if structure.has_extra_barriers() {
-        let limits: usize = structure
-            .limits
-            .iter()
-            .map(|f| 2 * usize::from(f.elongation) + usize::from(f.bend))
-            .sum();
+    if !structure.obstacles.is_empty() {
         let watched: usize = structure.obstacles.iter().map(|o| o.watch.len()).sum();
         text.push_str(&format!(
-            ", {limits} limit barrier{}, {} obstacle{} watching {watched} point{}",
-            if limits == 1 { "" } else { "s" },
+            ", {} obstacle{} watching {watched} point{}",
             structure.obstacles.len(),
             if structure.obstacles.len() == 1 {
                 ""

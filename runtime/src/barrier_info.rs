@@ -9,7 +9,7 @@
 //! past the table, or a row the robot does not match, gives `None`, never a panic.
 
 use serde_json::{Map, Value, json};
-use softcbf_description::barriers::{BarrierKind, Obstacle, Shape, WatchedPoint};
+use softcbf_description::barriers::{BarrierKind, KindGroup, Obstacle, Shape, WatchedPoint};
 use softcbf_generated::{BarrierInfo, Point};
 
 use crate::model::Model;
@@ -35,13 +35,9 @@ pub fn margin(model: &Model, k: usize) -> Option<f64> {
             model.robot.modules.get(module)?.margins.get(j).copied()
         }
         BarrierKind::ElongationMin | BarrierKind::ElongationMax => {
-            let limits = model.robot.limits.get(module)?;
-            limits.elongation.map(|_| limits.elongation_margin)
+            Some(model.robot.limits.get(module)?.elongation_margin)
         }
-        BarrierKind::Bend => {
-            let limits = model.robot.limits.get(module)?;
-            limits.max_bend.map(|_| limits.bend_margin)
-        }
+        BarrierKind::Bend => Some(model.robot.limits.get(module)?.bend_margin),
         BarrierKind::HalfSpace | BarrierKind::Sphere => obstacle(model, k).map(|o| o.margin),
     }
 }
@@ -87,7 +83,9 @@ pub fn arc_fraction(model: &Model, k: usize) -> Option<f64> {
 
 /// Barrier `k` as one JSON object (`softcbf model`'s `barrier_info`): `kind`
 /// ([`BarrierKind::key`]), `module` (1-based), `label`, `margin`, `unit` (of its value and
-/// margin); for a limit its values (`min` and `max` \[m\], or `max_bend` \[rad\]); for a
+/// margin); for a limit its values (`min` and `max` \[m\], or `max_bend` \[rad\]) and
+/// `domain_default` (`true` when the robot file writes no such limit and the model's
+/// domain default applies, docs/model.md §3); for a
 /// watched corner its number (`corner`, 1-based); for an environment barrier the `obstacle`
 /// (1-based) and its geometry (`center` and `radius`, or `normal` and `offset`); for a point
 /// fixed in a plate `point` (plate coordinates \[m\]), for a backbone point `arc_fraction`.
@@ -102,14 +100,22 @@ pub fn describe(model: &Model, k: usize) -> Option<Value> {
     let limits = model.robot.limits.get(info.module);
     match info.kind {
         BarrierKind::ElongationMin | BarrierKind::ElongationMax => {
-            let [min, max] = limits?.elongation?;
+            let [min, max] = limits?.elongation;
             entry.insert("min".into(), json!(min));
             entry.insert("max".into(), json!(max));
         }
         BarrierKind::Bend => {
-            entry.insert("max_bend".into(), json!(limits?.max_bend?));
+            entry.insert("max_bend".into(), json!(limits?.max_bend));
         }
         BarrierKind::PlateCorner | BarrierKind::HalfSpace | BarrierKind::Sphere => {}
+    }
+    if let Some(limits) = limits
+        && matches!(info.kind.group(), KindGroup::Elongation | KindGroup::Bend)
+    {
+        entry.insert(
+            "domain_default".into(),
+            json!(limits.is_domain_default(info.kind)),
+        );
     }
     if let Some(o) = info.obstacle {
         entry.insert("obstacle".into(), json!(o + 1));

@@ -3,8 +3,9 @@
 //!
 //! Besides the values, the object says what each barrier is twice: `barrier_table` (the
 //! generated table: kind as generated code names it, the corner, the parameters read) and
-//! `barrier_info` (the kind's key, margin, unit, limits, obstacle geometry and watched point,
-//! with the robot's numbers, from [`crate::barrier_info::describe_all`]).
+//! `barrier_info` (the kind's key, margin, unit, limits and whether each is the domain's
+//! default, obstacle geometry and watched point, with the robot's numbers, from
+//! [`crate::barrier_info::describe_all`]).
 
 use serde_json::{Value, json};
 

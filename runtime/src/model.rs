@@ -154,7 +154,7 @@ impl Model {
                 (KindGroup::Elongation | KindGroup::Bend, _) => robot
                     .limits
                     .get(info.module)
-                    .map_or([None, None], |l| l.gains),
+                    .map_or([None, None], |l| l.gains_of(info.kind)),
                 (KindGroup::Obstacle, Some(o)) => {
                     robot.obstacles.get(o).map_or([None, None], |ob| ob.gains)
                 }

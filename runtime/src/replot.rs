@@ -18,7 +18,7 @@ use serde_json::Value;
 use crate::model::Model;
 use crate::output::Console;
 use crate::plot::{FigureOptions, PlotError, Split, controller_title, write_figures};
-use crate::record::{Columns, Record, RecordError, as_strs};
+use crate::record::{Columns, Record, RecordError, Row, as_strs};
 use crate::sim::barriers_per_module;
 
 /// Why figures could not be redrawn. Each names the file at fault.
@@ -386,12 +386,29 @@ pub fn replot(
 }
 
 /// Names the columns of `record` (read from `file`) after `model`: its coordinates and
-/// barrier labels, the extra columns kept.
+/// barrier labels, the extra columns kept. A record written before every module carried
+/// the domain's limit barriers (docs/model.md §3) has the model's barriers without the
+/// limits its robot file does not write; those rows are added, computed from each row's
+/// `q`, so that the record has the model's columns.
 fn apply_robot(file: &Path, record: &mut Record, model: &Model) -> Result<(), ReplotError> {
     let columns = record.columns();
+    let table = model.generated.barrier_table();
+    // The barriers a log of this robot had before the domain's limits: all but those.
+    let written: Vec<usize> = (0..table.len())
+        .filter(|&k| {
+            let info = &table[k];
+            !model
+                .robot
+                .limits
+                .get(info.module)
+                .is_some_and(|limits| limits.is_domain_default(info.kind))
+        })
+        .collect();
+    let older = columns.m() != model.nb() && columns.m() == written.len();
+    let barriers = if older { written.len() } else { model.nb() };
     for (what, expected, found) in [
         ("coordinates", model.nq(), columns.n()),
-        ("barriers", model.nb(), columns.m()),
+        ("barriers", barriers, columns.m()),
     ] {
         if expected != found {
             return Err(ReplotError::Robot {
@@ -405,6 +422,19 @@ fn apply_robot(file: &Path, record: &mut Record, model: &Model) -> Result<(), Re
     }
     let extra = columns.extra_names().to_vec();
     let named = Columns::for_model(model, &as_strs(&extra))?;
-    record.relabel(named)?;
+    if !older {
+        record.relabel(named)?;
+        return Ok(());
+    }
+    let mut full = Record::for_columns(named, record.len());
+    let mut b = vec![0.0; model.nb()];
+    for row in record.rows() {
+        model.generated.barriers(&model.params, row.q, &mut b);
+        for (&k, &value) in written.iter().zip(row.b) {
+            b[k] = value;
+        }
+        full.push_row(&Row { b: &b, ..row })?;
+    }
+    *record = full;
     Ok(())
 }

@@ -922,26 +922,6 @@ pub fn structure_difference(controller: &Robot, plant: &Robot) -> Option<String>
             name(ours.routing)
         ));
     }
-    let limit_words = |f: &softcbf_description::barriers::LimitFlags| match (f.elongation, f.bend) {
-        (false, false) => "no limits",
-        (true, false) => "an elongation limit",
-        (false, true) => "a bend limit",
-        (true, true) => "elongation and bend limits",
-    };
-    if let Some((k, (a, b))) = ours
-        .limits
-        .iter()
-        .zip(&theirs.limits)
-        .enumerate()
-        .find(|(_, (a, b))| a != b)
-    {
-        return Some(format!(
-            "module {}: {} ([limits]), the controller's robot {}",
-            k + 1,
-            limit_words(b),
-            limit_words(a)
-        ));
-    }
     let (a, b) = (ours.obstacles.len(), theirs.obstacles.len());
     if a != b {
         return Some(format!("{b} obstacles, the controller's robot {a}"));

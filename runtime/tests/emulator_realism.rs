@@ -476,7 +476,8 @@ fn a_plant_of_another_structure_is_refused_naming_its_file() {
             "three-square.toml",
             "modules: 3 where the servos' robot has 2",
         ),
-        ("paper-sim.toml", "limit barriers per module"),
+        // Limits are numbers (every module has them), obstacles are structure.
+        ("paper-sim-obstacle.toml", "obstacles:"),
     ] {
         let mut settings = EmulatorSettings::new(BAUD);
         settings.plant = Some(robot(file));

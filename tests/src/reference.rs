@@ -16,7 +16,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 use std::path::PathBuf;
 
 use rand::RngExt;
-use softcbf_description::barriers::{Shape, WatchedPoint};
+use softcbf_description::barriers::{Limits, Shape, WatchedPoint};
 use softcbf_description::robot::{Module, Robot, Routing};
 
 use crate::TestRng;
@@ -567,7 +567,10 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
         barrier: [Some(10.0), Some(10.0)],
         gains: Default::default(),
         routing: Routing::Local,
-        limits: vec![Default::default(); modules.len()],
+        limits: modules
+            .iter()
+            .map(|m| Limits::domain(m.rest_length))
+            .collect(),
         obstacles: Vec::new(),
         uncertainty: Default::default(),
         modules,
@@ -808,7 +811,7 @@ fn local_point(module: &Module, point: &WatchedPoint) -> Local {
 
 /// Every barrier of `robot` as jets (docs/model.md §3), in this order: the plate corners
 /// (module by module, corner by corner), each module's limits (elongation min and max,
-/// bend), each obstacle's watched points in the robot's order. Limits:
+/// bend: every module has them), each obstacle's watched points in the robot's order. Limits:
 /// `b = δL − (δL_min + ε)`, `b = (δL_max − ε) − δL`, `b = (θ_b² − θ²)/(2 θ_b)` with
 /// `θ_b = θ_max − ε`; obstacles: `b = n·x − o − ε` and `b = |x − c| − ρ − ε` with `x` the
 /// watched point in the world.
@@ -817,16 +820,13 @@ pub fn all_barriers<const N: usize>(robot: &Robot, q: &[f64; N], qd: &[f64; N]) 
     let x = Jet::seed(q, qd);
     for (i, (module, limits)) in robot.modules.iter().zip(&robot.limits).enumerate() {
         let dl = x[3 * i + 2];
-        if let Some([min, max]) = limits.elongation {
-            out.push(dl + (-(min + limits.elongation_margin)));
-            out.push((max - limits.elongation_margin) - dl);
-        }
-        if let Some(max_bend) = limits.max_bend {
-            let bound = max_bend - limits.bend_margin;
-            let inv_d = 1.0 / module.tendon_radius;
-            let (a, b) = (x[3 * i] * inv_d, x[3 * i + 1] * inv_d);
-            out.push((bound * bound - (a * a + b * b)) * (0.5 / bound));
-        }
+        let [min, max] = limits.elongation;
+        out.push(dl + (-(min + limits.elongation_margin)));
+        out.push((max - limits.elongation_margin) - dl);
+        let bound = limits.max_bend - limits.bend_margin;
+        let inv_d = 1.0 / module.tendon_radius;
+        let (a, b) = (x[3 * i] * inv_d, x[3 * i + 1] * inv_d);
+        out.push((bound * bound - (a * a + b * b)) * (0.5 / bound));
     }
     let kinematics = chain(robot, q, qd);
     for obstacle in &robot.obstacles {
@@ -928,15 +928,12 @@ pub fn all_barrier_values_closed_form(robot: &Robot, q: &[f64]) -> Vec<f64> {
     }
     for (i, (module, limits)) in robot.modules.iter().zip(&robot.limits).enumerate() {
         let dl = q[3 * i + 2];
-        if let Some([min, max]) = limits.elongation {
-            out.push(dl - (min + limits.elongation_margin));
-            out.push((max - limits.elongation_margin) - dl);
-        }
-        if let Some(max_bend) = limits.max_bend {
-            let bound = max_bend - limits.bend_margin;
-            let (theta, _) = bend_angle_direction(module, [q[3 * i], q[3 * i + 1], q[3 * i + 2]]);
-            out.push((bound * bound - theta * theta) / (2.0 * bound));
-        }
+        let [min, max] = limits.elongation;
+        out.push(dl - (min + limits.elongation_margin));
+        out.push((max - limits.elongation_margin) - dl);
+        let bound = limits.max_bend - limits.bend_margin;
+        let (theta, _) = bend_angle_direction(module, [q[3 * i], q[3 * i + 1], q[3 * i + 2]]);
+        out.push((bound * bound - theta * theta) / (2.0 * bound));
     }
     for obstacle in &robot.obstacles {
         for watched in &obstacle.watch {

@@ -15,7 +15,9 @@ use softcbf::plot::{
 use softcbf::record::{Columns, Record, Row};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::simulate;
-use softcbf_description::barriers::{BarrierKind, Limits, Obstacle, Shape, Watched, WatchedPoint};
+use softcbf_description::barriers::{
+    BarrierKind, LimitFlags, Limits, Obstacle, Shape, Watched, WatchedPoint,
+};
 use softcbf_description::robot::Robot;
 
 fn out_dir(name: &str) -> PathBuf {
@@ -41,11 +43,15 @@ fn every_barrier_robot(centre: [f64; 3]) -> Robot {
     robot.name = "every-barrier".to_string();
     robot.limits = vec![
         Limits {
-            elongation: Some([-0.05, 0.03]),
+            elongation: [-0.05, 0.03],
             elongation_margin: 0.002,
-            max_bend: Some(100f64.to_radians()),
+            max_bend: 100f64.to_radians(),
             bend_margin: 0.02,
             gains: [None, None],
+            written: LimitFlags {
+                elongation: true,
+                bend: true,
+            },
         };
         2
     ];

@@ -8,7 +8,8 @@ use softcbf::model::Model;
 use softcbf_codegen::analytic::SWITCH_POINTS;
 use softcbf_codegen::registry::every_barrier;
 use softcbf_description::barriers::{
-    BarrierKind, KindGroup, Limits, Obstacle, Point, Shape, Watched, WatchedPoint, barrier_list,
+    BarrierKind, KindGroup, LimitFlags, Limits, Obstacle, Point, Shape, Watched, WatchedPoint,
+    barrier_list,
 };
 use softcbf_description::layout::pack_params;
 use softcbf_description::robot::Robot;
@@ -52,18 +53,26 @@ fn robot() -> Robot {
     let mut robot = reference::two_different_modules();
     robot.limits = vec![
         Limits {
-            elongation: Some([-0.05, 0.03]),
+            elongation: [-0.05, 0.03],
             elongation_margin: 0.004,
-            max_bend: Some(2.5),
+            max_bend: 2.5,
             bend_margin: 0.1,
             gains: [Some(8.0), None],
+            written: LimitFlags {
+                elongation: true,
+                bend: true,
+            },
         },
         Limits {
-            elongation: Some([-0.04, 0.035]),
+            elongation: [-0.04, 0.035],
             elongation_margin: 0.003,
-            max_bend: Some(2.2),
+            max_bend: 2.2,
             bend_margin: 0.05,
             gains: [None, None],
+            written: LimitFlags {
+                elongation: true,
+                bend: true,
+            },
         },
     ];
     let norm = (0.3f64 * 0.3 + 0.5 * 0.5 + 0.8 * 0.8).sqrt();
@@ -196,7 +205,7 @@ fn term_sizes(model: &Model) -> Vec<f64> {
         .barrier_table()
         .iter()
         .map(|info| match (info.kind, &model.robot.limits[info.module]) {
-            (BarrierKind::Bend, limits) => limits.max_bend.unwrap_or(0.0) - limits.bend_margin,
+            (BarrierKind::Bend, limits) => limits.max_bend - limits.bend_margin,
             _ => 0.0,
         })
         .collect()
@@ -249,7 +258,7 @@ fn robot_in_code_is_every_barrier() {
     let mut other_arc = robot.clone();
     other_arc.obstacles[0].watch[PER_MODULE + ARC_SLOTS[0]].point = WatchedPoint::Arc(0.45);
     let mut flatter = robot.clone();
-    flatter.limits[0].max_bend = Some(2.0);
+    flatter.limits[0].max_bend = 2.0;
 
     // What changed, the changed robot, and which rows read the changed number.
     type Change<'a> = (&'a str, Robot, &'a dyn Fn(usize) -> bool);
@@ -306,7 +315,7 @@ fn robot_in_code_is_every_barrier() {
 /// [`robot`] with module 2's elongation limits at `[−0.03, 0.02]`.
 fn robot_with_limit() -> Robot {
     let mut r = robot();
-    r.limits[1].elongation = Some([-0.03, 0.02]);
+    r.limits[1].elongation = [-0.03, 0.02];
     r
 }
 

@@ -14,7 +14,7 @@ use softcbf::record::{Columns, Record, RecordError, Row};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{LowestByKind, Run, simulate};
 use softcbf_description::Robot;
-use softcbf_description::barriers::{Limits, Obstacle, Shape, Watched, WatchedPoint};
+use softcbf_description::barriers::{LimitFlags, Limits, Obstacle, Shape, Watched, WatchedPoint};
 use softcbf_description::robot::Module;
 use softcbf_generated::{BarrierInfo, BarrierKind, KindGroup, Point};
 use softcbf_tests::reference::paper_robot;
@@ -24,11 +24,15 @@ use softcbf_tests::reference::paper_robot;
 fn limits(i: usize) -> Limits {
     let f = i as f64;
     Limits {
-        elongation: Some([-0.05 + 0.01 * f, 0.03 + 0.005 * f]),
+        elongation: [-0.05 + 0.01 * f, 0.03 + 0.005 * f],
         elongation_margin: 0.002 + 0.001 * f,
-        max_bend: Some(1.2 - 0.1 * f),
+        max_bend: 1.2 - 0.1 * f,
         bend_margin: 0.02 + 0.01 * f,
         gains: [None, None],
+        written: LimitFlags {
+            elongation: true,
+            bend: true,
+        },
     }
 }
 
@@ -257,15 +261,18 @@ fn model_json_describes_every_barrier_with_the_robots_numbers() {
         let mut want_keys = vec!["kind", "label", "margin", "module", "unit"];
         match want.kind {
             BarrierKind::ElongationMin | BarrierKind::ElongationMax => {
-                let [min, max] = limits.elongation.expect("limited");
+                let [min, max] = limits.elongation;
                 assert_eq!(number(&entry["min"], &at), min, "{at}");
                 assert_eq!(number(&entry["max"], &at), max, "{at}");
-                want_keys.extend(["max", "min"]);
+                // This robot writes every limit: none is the domain's default.
+                assert_eq!(entry["domain_default"], false, "{at}");
+                want_keys.extend(["domain_default", "max", "min"]);
             }
             BarrierKind::Bend => {
-                let max_bend = limits.max_bend.expect("limited");
+                let max_bend = limits.max_bend;
                 assert_eq!(number(&entry["max_bend"], &at), max_bend, "{at}");
-                want_keys.push("max_bend");
+                assert_eq!(entry["domain_default"], false, "{at}");
+                want_keys.extend(["domain_default", "max_bend"]);
             }
             _ => {}
         }
@@ -325,14 +332,33 @@ fn model_json_describes_every_barrier_with_the_robots_numbers() {
 }
 
 /// The paper robot's `barrier_info`: twelve corners with the 5 mm margin of
-/// `robots/paper-sim.toml` (`margin = 0.005`), in metres, without limits or obstacles.
+/// `robots/paper-sim.toml` (`margin = 0.005`), in metres, then the three limits of each
+/// module at the domain's defaults (the file writes none): `δL ∈ [−0.95 L0, 4 L0]` and
+/// `θ ≤ 1.25π` with `L0 = 0.1 m`, marked `domain_default`; no obstacles.
 #[test]
-fn model_json_of_the_paper_robot_lists_its_corners() {
+fn model_json_of_the_paper_robot_lists_its_corners_and_domain_limits() {
     let model = Model::new(softcbf::cli::load_robot(None).expect("embedded robot")).unwrap();
     let report = model_report(&model, &[0.0; 6], &[0.0; 6]).unwrap();
     let info = report["barrier_info"].as_array().expect("a list");
-    assert_eq!(info.len(), 12);
-    for (k, entry) in info.iter().enumerate() {
+    assert_eq!(info.len(), model.generated.barrier_table().len());
+    let (corners, limits) = info.split_at(12);
+    for (k, entry) in limits.iter().enumerate() {
+        let what = ["elongation_min", "elongation_max", "bend"][k % 3];
+        assert_eq!(entry["kind"], what, "{entry}");
+        assert_eq!(entry["module"], k / 3 + 1);
+        assert_eq!(entry["domain_default"], true, "{entry}");
+        assert_eq!(number(&entry["margin"], "margin"), 0.0);
+        if what == "bend" {
+            let max = number(&entry["max_bend"], "max_bend");
+            assert!((max - 1.25 * std::f64::consts::PI).abs() < 1e-15, "{max}");
+            assert_eq!(entry["unit"], "rad");
+        } else {
+            assert!((number(&entry["min"], "min") + 0.095).abs() < 1e-15);
+            assert!((number(&entry["max"], "max") - 0.4).abs() < 1e-15);
+            assert_eq!(entry["unit"], "m");
+        }
+    }
+    for (k, entry) in corners.iter().enumerate() {
         assert_eq!(entry["kind"], "plate_corner");
         assert_eq!(entry["module"], k / 6 + 1);
         assert_eq!(entry["corner"], k % 6 + 1);
@@ -515,24 +541,31 @@ fn summary_has_the_lowest_barrier_of_each_kind() {
     assert!(line.contains(" rad ("), "{line}");
 }
 
-/// The paper robot's summary keeps its one group: the lowest corner is the overall
-/// lowest, in metres, and the printed line says nothing per kind.
+/// The paper robot's summary: the lowest corner is the overall lowest, in metres, and the
+/// domain's limits every module has are reported per kind beside it, far from zero.
 #[test]
-fn paper_summary_has_only_the_corner_group() {
+fn paper_summary_reports_the_corners_and_the_domain_limits() {
     let model = Model::new(softcbf::cli::load_robot(None).expect("embedded robot")).unwrap();
     let run = short_run(&model, 0.2);
     let summary = &run.summary;
-    assert_eq!(summary.lowest_by_kind.len(), 1);
+    assert_eq!(summary.lowest_by_kind.len(), 3);
     let corners = summary
         .lowest_by_kind
         .get(KindGroup::PlateCorner)
         .expect("corners");
     assert_eq!(corners, &summary.min_barrier);
     assert_eq!((corners.kind, corners.unit), ("plate_corner", "m"));
+    for group in [KindGroup::Elongation, KindGroup::Bend] {
+        let lowest = summary.lowest_by_kind.get(group).expect("limits");
+        assert!(lowest.value > 0.05, "{lowest:?}");
+    }
     let json = serde_json::to_value(summary).unwrap();
-    assert_eq!(keys(&json["lowest_by_kind"]), ["plate_corner"]);
+    assert_eq!(
+        keys(&json["lowest_by_kind"]),
+        ["bend", "elongation", "plate_corner"]
+    );
     let line = one_line(summary);
-    assert!(!line.contains("per kind"), "{line}");
+    assert!(line.contains("lowest per kind: plate corners "), "{line}");
     assert!(line.contains(" m (module "), "{line}");
 }
 

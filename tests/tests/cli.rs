@@ -242,11 +242,14 @@ fn model_report_has_every_key_with_reference_values() {
         assert_eq!(pose[3], [0.0, 0.0, 0.0, 1.0]);
     }
 
-    let exact: Vec<Jet<N>> = reference::barriers(&robot, &q, &qd);
+    // Every barrier, the twelve corners and each module's three limits (the domain's).
+    let exact: Vec<Jet<N>> = reference::all_barriers(&robot, &q, &qd);
+    let nb = exact.len();
+    assert_eq!(nb, 12 + 2 * 3);
     let barriers = numbers(&report["barriers"], "barriers");
-    let jacobian = matrix(&report["barrier_jacobian"], "barrier_jacobian", 12, N);
+    let jacobian = matrix(&report["barrier_jacobian"], "barrier_jacobian", nb, N);
     let jdot_qd = numbers(&report["barrier_jdot_qd"], "barrier_jdot_qd");
-    assert_eq!((barriers.len(), jdot_qd.len()), (12, 12));
+    assert_eq!((barriers.len(), jdot_qd.len()), (nb, nb));
     for (r, b) in exact.iter().enumerate() {
         assert!(close(barriers[r], b.v, 0.2), "barrier {r}");
         for (k, (got, exact)) in jacobian[r].iter().zip(&b.g).enumerate() {

@@ -43,6 +43,14 @@ fn zeros(n: usize) -> Vec<f64> {
     vec![0.0; n]
 }
 
+/// The class-K gains `[p1, p2]` of barrier `k`: its own (a limit at the domain's default,
+/// a limits table's or an obstacle's), else the run's.
+fn gains(model: &Model, controller: &Controller, k: usize) -> (f64, f64) {
+    let [p1, p2] = controller.settings().barrier_gains;
+    let [own1, own2] = model.own_barrier_gains[k];
+    (own1.unwrap_or(p1), own2.unwrap_or(p2))
+}
+
 /// Regulation toward `set_point`: `q̄̇ = q̄̈ = 0` (`zero` of the same length).
 fn regulation<'a>(set_point: &'a [f64], zero: &'a [f64]) -> Reference<'a> {
     Reference {
@@ -60,7 +68,6 @@ fn hocbf_rows_predict_the_barrier_acceleration() {
     let model = paper_model();
     let (nq, nb) = (model.nq(), model.nb());
     let mut controller = Controller::new(&model, ControllerSettings::paper(&model)).unwrap();
-    let [p1, p2] = controller.settings().barrier_gains;
     let mut ws = DynamicsWorkspace::new(&model);
     let mut rng = softcbf_tests::rng(11);
     let (zero, h) = (zeros(nq), 2e-5);
@@ -85,6 +92,7 @@ fn hocbf_rows_predict_the_barrier_acceleration() {
         let (minus_half, plus_half) = (along(-h / 2.0), along(h / 2.0));
         let (rows, rhs) = controller.constraints();
         for k in 0..nb {
+            let (p1, p2) = gains(&model, &controller, k);
             let rate_h = (plus[k] - minus[k]) / (2.0 * h);
             let rate_half = (plus_half[k] - minus_half[k]) / h;
             let rate = (4.0 * rate_half - rate_h) / 3.0;
@@ -123,7 +131,6 @@ fn hold_corrected_rows_predict_the_implicit_euler_step() {
     settings.safety = SafetyMode::HoldCorrection;
     settings.hold = hold;
     let mut controller = Controller::new(&model, settings).unwrap();
-    let [p1, p2] = controller.settings().barrier_gains;
     let (stiffness, damping) = stiffness_and_damping(&model.robot);
     let mut rng = softcbf_tests::rng(14);
     let zero = zeros(nq);
@@ -168,6 +175,7 @@ fn hold_corrected_rows_predict_the_implicit_euler_step() {
             .barrier_terms(&model.params, &q, &qd, &mut b, &mut j_unused, &mut jdot_qd);
         let (rows, rhs) = controller.constraints();
         for k in 0..nb {
+            let (p1, p2) = gains(&model, &controller, k);
             let row = &jacobian[k * nq..(k + 1) * nq];
             let average: f64 = (0..nq).map(|i| row[i] * (qd_next[i] - qd[i]) / hold).sum();
             let rate: f64 = (0..nq).map(|i| row[i] * qd[i]).sum();

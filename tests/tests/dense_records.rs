@@ -269,29 +269,32 @@ fn a_plant_of_another_structure_is_refused() {
     let dir = out_dir("structure");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("scenario.toml");
-    let refused = |plant: &Path| {
+    let resolve = |plant: &Path| {
         let text = format!(
             "duration = 0.5\nplant = \"{}\"\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
             plant.display()
         );
         std::fs::write(&path, &text).unwrap();
-        ScenarioFile::load(&path)
-            .unwrap()
-            .resolve(&model)
-            .unwrap_err()
-            .to_string()
+        ScenarioFile::load(&path).unwrap().resolve(&model)
     };
-    let limits = refused(&repo("robots/paper-sim-limits.toml"));
+    let refused = |plant: &Path| resolve(plant).unwrap_err().to_string();
+    let accepted = |plant: &Path| {
+        if let Err(error) = resolve(plant) {
+            panic!("{}: {error}", plant.display())
+        }
+    };
+    // Limits are numbers (every module has them): a plant with other limits is accepted.
+    accepted(&repo("robots/paper-sim-limits.toml"));
+    let obstacle = refused(&repo("robots/paper-sim-obstacle.toml"));
     let prefix = format!("{}:2: field `plant`: the plant robot ", path.display());
-    assert!(limits.starts_with(&prefix), "{limits}");
+    assert!(obstacle.starts_with(&prefix), "{obstacle}");
     assert!(
-        limits.contains("differs in structure from the controller's robot"),
-        "{limits}"
+        obstacle.contains("differs in structure from the controller's robot"),
+        "{obstacle}"
     );
     assert!(
-        limits
-            .contains("module 1: an elongation limit ([limits]), the controller's robot no limits"),
-        "{limits}"
+        obstacle.contains("1 obstacles, the controller's robot 0"),
+        "{obstacle}"
     );
     let three = refused(&repo("robots/three-square.toml"));
     assert!(

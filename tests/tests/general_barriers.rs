@@ -162,7 +162,7 @@ fn an_infeasible_elongation_limit_is_relaxed_and_reported() {
     let mut settings = ControllerSettings::paper(&model);
     settings.input_limits = map.tension_limit_rows();
     let mut controller = Controller::new(&model, settings).expect("controller");
-    let [min, _] = model.robot.limits[0].elongation.expect("limits");
+    let [min, _] = model.robot.limits[0].elongation;
     let dl = min + model.robot.limits[0].elongation_margin + 0.001;
     let q = [0.0, 0.0, dl, 0.0, 0.0, 0.0];
     let qd = [0.0, 0.0, -0.5, 0.0, 0.0, 0.0];

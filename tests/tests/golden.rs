@@ -166,13 +166,18 @@ fn model_terms_is_joint_terms_and_barrier_terms() {
 }
 
 /// The barrier table names every barrier of the paper robot, module-major and
-/// corner-minor, with the parameters its expression reads.
+/// corner-minor, then each module's three limits (the robot file writes none: the
+/// domain's), with the parameters each expression reads.
 #[test]
-fn barrier_table_describes_the_plate_corners() {
+fn barrier_table_describes_the_plate_corners_and_limits() {
     use softcbf_generated::{BarrierKind, GeneratedModel, Point};
     let model = &softcbf_generated::paper_sim::Model;
     let table = model.barrier_table();
-    assert_eq!(table.len(), model.corners().iter().sum::<usize>());
+    let modules = model.corners().len();
+    assert_eq!(
+        table.len(),
+        model.corners().iter().sum::<usize>() + 3 * modules
+    );
     assert_eq!(model.nb(), table.len());
     let names = model.param_names();
     let mut k = 0;
@@ -198,4 +203,46 @@ fn barrier_table_describes_the_plate_corners() {
             k += 1;
         }
     }
+    for i in 0..modules {
+        let limits = [
+            (
+                BarrierKind::ElongationMin,
+                "elongation min",
+                "elongation_min",
+            ),
+            (
+                BarrierKind::ElongationMax,
+                "elongation max",
+                "elongation_max",
+            ),
+        ];
+        for (kind, label, value) in limits {
+            let b = &table[k];
+            assert_eq!(
+                (b.kind, b.module, b.point, b.obstacle),
+                (kind, i, None, None)
+            );
+            assert_eq!(b.label, format!("module {} {label}", i + 1));
+            let read: Vec<&str> = b.params.iter().map(|&p| names[p]).collect();
+            assert_eq!(
+                read,
+                [format!("{value}_{i}"), format!("elongation_margin_{i}")]
+            );
+            k += 1;
+        }
+        let b = &table[k];
+        assert_eq!((b.kind, b.module), (BarrierKind::Bend, i));
+        assert_eq!(b.label, format!("module {} bend", i + 1));
+        let mut read: Vec<&str> = b.params.iter().map(|&p| names[p]).collect();
+        read.sort_unstable();
+        let mut expected = [
+            format!("tendon_radius_{i}"),
+            format!("max_bend_{i}"),
+            format!("bend_margin_{i}"),
+        ];
+        expected.sort_unstable();
+        assert_eq!(read, expected);
+        k += 1;
+    }
+    assert_eq!(k, table.len());
 }

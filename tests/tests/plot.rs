@@ -769,9 +769,13 @@ fn figures_are_redrawn_from_the_files() {
     let mut lines: Vec<&str> = text.lines().take(5).collect();
     lines.push("0.1,oops");
     std::fs::write(&broken, lines.join("\n")).unwrap();
+    let header_fields = text.lines().next().unwrap().split(',').count();
     assert_eq!(
         message(std::slice::from_ref(&broken)),
-        format!("{}:6: 2 fields, the header has 37", broken.display())
+        format!(
+            "{}:6: 2 fields, the header has {header_fields}",
+            broken.display()
+        )
     );
     let three = alone.join("three.csv");
     Record::with_capacity(9, 12, &[], 0)
@@ -807,8 +811,9 @@ fn figures_are_redrawn_from_the_files() {
     );
 }
 
-/// A log written before the columns were named: drawn with numbered barriers, and with the
-/// robot file's labels and modules when one is given.
+/// A log written before the columns were named (and before every module had its limit
+/// barriers): drawn with numbered barriers, and with the robot file's labels and modules
+/// when one is given.
 #[test]
 fn old_logs_are_redrawn_with_the_robots_labels() {
     use softcbf::cli::load_robot;
@@ -867,6 +872,9 @@ fn old_logs_are_redrawn_with_the_robots_labels() {
     .unwrap();
     let text = svg(&named);
     assert!(text.contains("\nmodule 1 corner 1\n") && !text.contains("\nbarrier 1\n"));
+    // The log predates the domain's limit rows of every module: they are computed from its
+    // coordinates and drawn in their own rows.
+    assert!(text.contains("elongation limits") && text.contains("bend limits"));
     // A robot of another size is refused, naming the file and the robot.
     let three = Model::new(
         load_robot(Some(

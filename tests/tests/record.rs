@@ -108,7 +108,9 @@ const PAPER_HEADER: &str = "t [s],\
     b module 1 corner 1 [m],b module 1 corner 2 [m],b module 1 corner 3 [m],\
     b module 1 corner 4 [m],b module 1 corner 5 [m],b module 1 corner 6 [m],\
     b module 2 corner 1 [m],b module 2 corner 2 [m],b module 2 corner 3 [m],\
-    b module 2 corner 4 [m],b module 2 corner 5 [m],b module 2 corner 6 [m]";
+    b module 2 corner 4 [m],b module 2 corner 5 [m],b module 2 corner 6 [m],\
+    b module 1 elongation min [m],b module 1 elongation max [m],b module 1 bend [rad],\
+    b module 2 elongation min [m],b module 2 elongation max [m],b module 2 bend [rad]";
 
 fn paper_model() -> Model {
     Model::new(load_robot(None).unwrap()).unwrap()
@@ -138,7 +140,8 @@ fn header_of_the_paper_robot_is_exact() {
         String::from_utf8(text).unwrap(),
         format!("{PAPER_HEADER}\n")
     );
-    assert_eq!(record.columns().width(), 37);
+    // t, four groups of six, twelve corners and six limits.
+    assert_eq!(record.columns().width(), 1 + 4 * 6 + 12 + 6);
     // Without a model: the same coordinate names, numbered barrier labels.
     let plain = Columns::new(6, 2, &[]).unwrap();
     assert!(
@@ -169,7 +172,7 @@ fn header_with_extra_columns_is_exact() {
         assert_eq!(columns.name(k).as_deref(), Some(name));
         assert_eq!(columns.index_of(name), Some(k));
     }
-    assert_eq!(columns.name(40), None);
+    assert_eq!(columns.name(expected.split(',').count()), None);
 }
 
 #[test]
@@ -642,7 +645,7 @@ fn python_csv_reads_the_names() {
     let columns = Columns::for_model(&model, &["read [us]", "f module 1 tendon 1 [N]"]).unwrap();
     let mut record = Record::for_columns(columns.clone(), 2);
     let v = vec![0.25; 6];
-    let b = vec![f64::NAN; 12];
+    let b = vec![f64::NAN; model.nb()];
     record
         .push_row(&Row {
             t: 0.001,
@@ -691,9 +694,9 @@ print(json.dumps({"names": list(row.keys()), "rows": len(rows),
 
 #[test]
 fn relabel_keeps_values_and_checks_sizes() {
-    let mut record = random_record(6, 12, &["x"], 5, 12);
-    let before = record.clone();
     let model = paper_model();
+    let mut record = random_record(6, model.nb(), &["x"], 5, 12);
+    let before = record.clone();
     record
         .relabel(Columns::for_model(&model, &["x"]).unwrap())
         .unwrap();
@@ -706,14 +709,18 @@ fn relabel_keeps_values_and_checks_sizes() {
             .all(|(a, b)| a.to_bits() == b.to_bits())
     );
     assert_eq!(record.columns().barrier_labels()[11], "module 2 corner 6");
+    let nb = model.nb();
     let error = record
-        .relabel(Columns::new(6, 11, &["x"]).unwrap())
+        .relabel(Columns::new(6, nb - 1, &["x"]).unwrap())
         .unwrap_err();
     assert_eq!(
         error.to_string(),
-        "the new columns have 11 barriers, the record has 12"
+        format!(
+            "the new columns have {} barriers, the record has {nb}",
+            nb - 1
+        )
     );
-    assert!(record.relabel(Columns::new(6, 12, &[]).unwrap()).is_err());
+    assert!(record.relabel(Columns::new(6, nb, &[]).unwrap()).is_err());
     assert_eq!(record.columns().barrier_labels()[11], "module 2 corner 6");
 }
 

@@ -205,7 +205,7 @@ fn active_corners_are_those_at_or_below_the_threshold() {
     let model = paper();
     let q = vec![0.0; 6];
     // Barrier j is (j − 3) mm in the record, whatever the model says; one is NaN.
-    let mut b: Vec<f64> = (0..12).map(|j| (j as f64 - 3.0) * 1e-3).collect();
+    let mut b: Vec<f64> = (0..model.nb()).map(|j| (j as f64 - 3.0) * 1e-3).collect();
     let rows = vec![
         (0.0, q.clone(), b.clone()),
         (1.0, q.clone(), {
@@ -213,7 +213,7 @@ fn active_corners_are_those_at_or_below_the_threshold() {
             b.clone()
         }),
     ];
-    let record = record(6, 12, &rows);
+    let record = record(6, model.nb(), &rows);
     let plan = plan_snapshots(&model, &[("run", &record)], &[0.0, 1.0], 0.5e-3).unwrap();
     assert_eq!(plan.len(), 1);
     let [first, second] = &plan[0][..] else {
@@ -240,11 +240,11 @@ fn snapshots_take_the_nearest_finite_row_and_skip_nan_rows() {
     let nan = vec![f64::NAN; 6];
     let rows = vec![
         (0.0, q(0.0), barriers(&model, &q(0.0))),
-        (0.5, nan.clone(), vec![f64::NAN; 12]),
+        (0.5, nan.clone(), vec![f64::NAN; model.nb()]),
         (f64::NAN, q(0.02), barriers(&model, &q(0.02))),
         (1.0, q(0.03), barriers(&model, &q(0.03))),
     ];
-    let record = record(6, 12, &rows);
+    let record = record(6, model.nb(), &rows);
     let plan = plan_snapshots(
         &model,
         &[("run", &record)],
@@ -300,7 +300,7 @@ fn automatic_snapshots_go_where_the_robot_moves() {
             (t, q, b)
         })
         .collect();
-    let record = record(6, 12, &rows);
+    let record = record(6, model.nb(), &rows);
     let times = snapshot_times(&model, &[("run", &record)], 4).unwrap();
     assert_eq!(times.len(), 4);
     assert_eq!((times[0], times[3]), (0.0, 10.0));
@@ -464,7 +464,7 @@ fn bad_inputs_are_errors() {
     };
     let defaults = ViewOptions::default();
     assert!(matches!(draw(&[], &defaults), Err(PlotError::NoPanels)));
-    let empty = record(6, 12, &[]);
+    let empty = record(6, model.nb(), &[]);
     assert!(matches!(
         draw(&[("empty", &empty)], &defaults),
         Err(PlotError::EmptyRecord { title }) if title == "empty"

@@ -1,17 +1,19 @@
 //! The `[limits]`, `[module.limits]` and `[[obstacle]]` tables of a robot file, read and
 //! checked into [`Limits`] per module and [`Obstacle`]s (format: `robots/README.md`).
+//! Every module gets its limits: a value no table writes is the domain's default
+//! ([`Limits::domain`]).
 //!
 //! Every value is checked against its range in `crate::limits` where it is written; what
-//! depends on a module (a lower elongation limit must leave a positive backbone length, a
-//! watched corner must exist) is checked for each module the value applies to, with the
-//! error on the line that wrote it.
+//! depends on a module (an elongation limit must lie within the domain's defaults for its
+//! rest length, a watched corner must exist) is checked for each module the value applies
+//! to, with the error on the line that wrote it.
 
 use std::ops::Range;
 
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::barriers::{Limits, Obstacle, Shape, Watched, WatchedPoint};
+use crate::barriers::{LimitFlags, Limits, Obstacle, Shape, Watched, WatchedPoint};
 use crate::limits;
 use crate::module::Module;
 use crate::toml_file::{Checker, FileError};
@@ -170,74 +172,102 @@ impl Checker<'_> {
             let max_bend = own.max_bend.as_ref().or(top.max_bend.as_ref());
             let bend_margin = own.bend_margin.as_ref().or(top.bend_margin.as_ref());
             let margin = elongation_margin.map_or(0.0, |m| m.value);
+            let l0 = module.rest_length;
+            let domain = Limits::domain(l0);
+            let [lowest, highest] = domain.elongation;
+            let allowed = || {
+                format!(
+                    "the model's domain allows {} ≤ δL_min < δL_max ≤ {} m for L0 = {l0} m \
+                     (docs/model.md §3)",
+                    crate::domain::rounded(lowest),
+                    crate::domain::rounded(highest)
+                )
+            };
             if let Some(e) = elongation {
                 let [min, max] = e.value;
-                let l0 = module.rest_length;
-                if l0 + min <= 0.0 {
+                if min < lowest {
                     return Err(self.invalid(
                         &e.span,
                         &e.field,
                         format!(
-                            "module {}: δL_min = {min} m gives a backbone length L0 + δL_min = \
-                             {} m ≤ 0 (L0 = {l0} m); δL_min must be > {} m",
+                            "module {}: δL_min = {min} m leaves a backbone length L0 + δL_min = \
+                             {} m, shorter than {} L0 = {} m; {}",
                             i + 1,
                             crate::domain::rounded(l0 + min),
-                            limits::short(-l0)
+                            limits::DEFAULT_MIN_LENGTH_FRACTION,
+                            crate::domain::rounded(limits::DEFAULT_MIN_LENGTH_FRACTION * l0),
+                            allowed()
                         ),
                     ));
                 }
-                let max_allowed = crate::domain::MAX_ELONGATION_RATIO * l0;
-                if max > max_allowed {
+                if max > highest {
                     return Err(self.invalid(
                         &e.span,
                         &e.field,
                         format!(
-                            "module {}: δL_max = {max} m is beyond the model's domain of {} rest \
-                             lengths ({} m)",
+                            "module {}: δL_max = {max} m stretches the backbone beyond {} rest \
+                             lengths; {}",
                             i + 1,
-                            crate::domain::MAX_ELONGATION_RATIO,
-                            limits::short(max_allowed)
-                        ),
-                    ));
-                }
-                if min + margin >= max - margin {
-                    let (span, field) = match elongation_margin {
-                        Some(m) => (&m.span, &m.field),
-                        None => (&e.span, &e.field),
-                    };
-                    return Err(self.invalid(
-                        span,
-                        field,
-                        format!(
-                            "module {}: the margin {margin} m leaves no allowed elongation inside \
-                             [{min}, {max}] m (it needs δL_min + ε < δL_max − ε)",
-                            i + 1
+                            limits::DEFAULT_MAX_ELONGATION_RATIO,
+                            allowed()
                         ),
                     ));
                 }
             }
-            let bend_margin_value = bend_margin.map_or(0.0, |m| m.value);
-            if let Some(b) = max_bend
-                && bend_margin_value >= b.value
+            let [min, max] = elongation.map_or(domain.elongation, |e| e.value);
+            // Only a written margin or written limits can leave no room (the defaults
+            // without a margin always do).
+            let written_at = elongation_margin
+                .map(|m| (&m.span, &m.field))
+                .or(elongation.map(|e| (&e.span, &e.field)));
+            if min + margin >= max - margin
+                && let Some((span, field)) = written_at
             {
-                let at = bend_margin.unwrap_or(b);
+                return Err(self.invalid(
+                    span,
+                    field,
+                    format!(
+                        "module {}: the margin {margin} m leaves no allowed elongation inside \
+                         [{}, {}] m (it needs δL_min + ε < δL_max − ε)",
+                        i + 1,
+                        crate::domain::rounded(min),
+                        crate::domain::rounded(max)
+                    ),
+                ));
+            }
+            let bend_margin_value = bend_margin.map_or(0.0, |m| m.value);
+            let max_bend_value = max_bend.map_or(domain.max_bend, |b| b.value);
+            // A margin of zero (none written) is always below the limit.
+            if bend_margin_value >= max_bend_value
+                && let Some(at) = bend_margin.or(max_bend)
+            {
                 return Err(self.invalid(
                     &at.span,
                     &at.field,
                     format!(
-                        "module {}: the bend margin ({:.6}°) must be below max_bend_deg ({:.6}°)",
+                        "module {}: the bend margin ({:.6}°) must be below the bend limit \
+                         ({:.6}°{})",
                         i + 1,
                         bend_margin_value.to_degrees(),
-                        b.value.to_degrees()
+                        max_bend_value.to_degrees(),
+                        if max_bend.is_some() {
+                            ", max_bend_deg"
+                        } else {
+                            ", the domain's default"
+                        }
                     ),
                 ));
             }
             out.push(Limits {
-                elongation: elongation.map(|e| e.value),
+                elongation: [min, max],
                 elongation_margin: margin,
-                max_bend: max_bend.map(|b| b.value),
+                max_bend: max_bend_value,
                 bend_margin: bend_margin_value,
                 gains: [own.gains[0].or(top.gains[0]), own.gains[1].or(top.gains[1])],
+                written: LimitFlags {
+                    elongation: elongation.is_some(),
+                    bend: max_bend.is_some(),
+                },
             });
         }
         Ok(out)
@@ -509,7 +539,7 @@ mod tests {
     use std::path::Path;
 
     use crate::Robot;
-    use crate::barriers::{Limits, Shape, Watched, WatchedPoint};
+    use crate::barriers::{LimitFlags, Limits, Shape, Watched, WatchedPoint};
     use crate::toml_file::FileError;
     use crate::toml_file::testing::assert_invalid;
 
@@ -530,22 +560,60 @@ mod tests {
         assert_eq!(
             robot.limits[0],
             Limits {
-                elongation: Some([-0.05, 0.03]),
+                elongation: [-0.05, 0.03],
                 elongation_margin: 0.0,
-                max_bend: Some(right),
+                max_bend: right,
                 bend_margin: 0.0,
                 gains: [Some(4.0), None],
+                written: LimitFlags {
+                    elongation: true,
+                    bend: true
+                },
             }
         );
-        assert_eq!(robot.limits[1].elongation, Some([-0.02, 0.02]));
+        assert_eq!(robot.limits[1].elongation, [-0.02, 0.02]);
         assert_eq!(robot.limits[1].elongation_margin, 0.001);
         assert!((robot.limits[1].bend_margin - right / 9.0).abs() < 1e-15);
-        assert_eq!(robot.limits[1].max_bend, Some(right));
-        // No tables: no limits, and the structure of the corner barriers alone.
+        assert_eq!(robot.limits[1].max_bend, right);
+        // No tables: every module keeps the domain's limits, and the same structure (limits
+        // are numbers).
         let plain = parse("modules = 2").unwrap();
-        assert_eq!(plain.limits, vec![Limits::default(); 2]);
-        assert!(!plain.structure().has_extra_barriers());
-        assert!(robot.structure().has_extra_barriers());
+        let l0 = plain.modules[0].rest_length;
+        assert_eq!(plain.limits, vec![Limits::domain(l0); 2]);
+        assert_eq!(plain.limits[0].written, LimitFlags::default());
+        assert_eq!(plain.structure(), robot.structure());
+    }
+
+    #[test]
+    fn unwritten_limits_are_the_domains_defaults_with_their_own_gains() {
+        use crate::barriers::BarrierKind;
+        use crate::limits::{DEFAULT_MAX_BEND_RAD, DOMAIN_BARRIER_GAINS};
+        // Module 1 writes a bend limit only, module 2 nothing; L0 = 0.1 m and 0.2 m.
+        let robot = parse(
+            "[[module]]\nrest_length = 0.1\n[module.limits]\nmax_bend_deg = 90\np1 = 4\n\
+             elongation_margin = 0.01\n[[module]]\nrest_length = 0.2\n",
+        )
+        .unwrap();
+        let [one, two] = &robot.limits[..] else {
+            panic!("two modules")
+        };
+        // −(1 − 0.05)·L0 and 4·L0, written out by hand.
+        assert!((one.elongation[0] + 0.095).abs() < 1e-15);
+        assert!((one.elongation[1] - 0.4).abs() < 1e-15);
+        assert!((two.elongation[0] + 0.19).abs() < 1e-15);
+        assert!((two.elongation[1] - 0.8).abs() < 1e-15);
+        assert_eq!(one.elongation_margin, 0.01);
+        assert_eq!(two.max_bend, DEFAULT_MAX_BEND_RAD);
+        assert!((DEFAULT_MAX_BEND_RAD - 225f64.to_radians()).abs() < 1e-15);
+        // The written bend limit keeps the table's gains (p2: the run's); the defaults
+        // take the domain's.
+        assert!(!one.is_domain_default(BarrierKind::Bend));
+        assert_eq!(one.gains_of(BarrierKind::Bend), [Some(4.0), None]);
+        let domain = DOMAIN_BARRIER_GAINS.map(Some);
+        assert!(one.is_domain_default(BarrierKind::ElongationMin));
+        assert_eq!(one.gains_of(BarrierKind::ElongationMax), domain);
+        assert_eq!(two.gains_of(BarrierKind::Bend), domain);
+        assert!(!two.is_domain_default(BarrierKind::PlateCorner));
     }
 
     #[test]
@@ -629,12 +697,46 @@ mod tests {
             "limits.elongation",
             "needs 2 entries",
         );
-        // L0 = 0.1 m: δL_min = −0.1 m would leave no backbone.
+        // L0 = 0.1 m: δL_min = −0.1 m would leave no backbone, −0.096 m less than 5 %.
         assert_invalid(
             parse("modules = 1\n[limits]\nelongation = [-0.1, 0.03]\n"),
             3,
             "limits.elongation",
-            "L0 + δL_min = 0 m ≤ 0",
+            "L0 + δL_min = 0 m, shorter than 0.05 L0 = 0.005 m",
+        );
+        assert_invalid(
+            parse("modules = 1\n[limits]\nelongation = [-0.096, 0.03]\n"),
+            3,
+            "limits.elongation",
+            "allows -0.095 ≤ δL_min < δL_max ≤ 0.4 m for L0 = 0.1 m",
+        );
+        // The domain's defaults are the widest limits a file may write.
+        assert!(parse("modules = 1\n[limits]\nelongation = [-0.095, 0.4]\n").is_ok());
+        assert_invalid(
+            parse("modules = 1\n[limits]\nelongation = [-0.05, 0.41]\n"),
+            3,
+            "limits.elongation",
+            "δL_max = 0.41 m stretches the backbone beyond 4 rest lengths",
+        );
+        assert_invalid(
+            parse("modules = 1\n[limits]\nmax_bend_deg = 226\n"),
+            3,
+            "limits.max_bend_deg",
+            "must be > 0 and ≤ 225°, got 226",
+        );
+        assert!(parse("modules = 1\n[limits]\nmax_bend_deg = 225\n").is_ok());
+        // A margin tightens the defaults too, and must leave them room.
+        assert_invalid(
+            parse("modules = 1\n[limits]\nelongation_margin = 0.25\n"),
+            3,
+            "limits.elongation_margin",
+            "leaves no allowed elongation inside [-0.095, 0.4] m",
+        );
+        assert_invalid(
+            parse("modules = 1\n[limits]\nbend_margin_deg = 225\n"),
+            3,
+            "limits.bend_margin_deg",
+            "below the bend limit (225.000000°, the domain's default)",
         );
         assert_invalid(
             parse(
@@ -663,13 +765,13 @@ mod tests {
             parse("modules = 1\n[limits]\nmax_bend_deg = 300\n"),
             3,
             "limits.max_bend_deg",
-            "must be > 0 and ≤ 270°",
+            "must be > 0 and ≤ 225°",
         );
         assert_invalid(
             parse("modules = 1\n[limits]\nmax_bend_deg = 30\nbend_margin_deg = 30\n"),
             4,
             "limits.bend_margin_deg",
-            "must be below max_bend_deg",
+            "must be below the bend limit (30.000000°, max_bend_deg)",
         );
         assert_invalid(
             parse("modules = 1\n[limits]\np1 = 0\n"),

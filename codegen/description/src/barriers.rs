@@ -1,5 +1,6 @@
-//! The barriers a robot declares beyond its plate corners (paper §II-C, docs/model.md §3):
-//! elongation and bend limits per module, and obstacles that chosen points must avoid.
+//! The barriers of a robot beyond its plate corners (paper §II-C, docs/model.md §3):
+//! elongation and bend limits of every module (the file's, else the domain's defaults), and
+//! obstacles that chosen points must avoid.
 //!
 //! Which barriers exist is structure (code is generated for them); where an obstacle sits,
 //! a limit's value and a margin are numbers (parameters read at run time). [`barrier_list`]
@@ -175,12 +176,14 @@ impl ObstacleKind {
     }
 }
 
-/// Which limit barriers a module has (structure).
+/// Which limits a module's robot file writes (`[limits]`, `[module.limits]`); the others
+/// are the domain's defaults ([`Limits::domain`]). Every module has all
+/// three limit barriers either way: this is a number of the robot, not structure.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct LimitFlags {
-    /// `δL_min ≤ δL ≤ δL_max`: two barriers.
+    /// `δL_min ≤ δL ≤ δL_max`, both sides.
     pub elongation: bool,
-    /// `θ ≤ θ_max`: one barrier.
+    /// `θ ≤ θ_max`.
     pub bend: bool,
 }
 
@@ -194,28 +197,60 @@ pub struct ObstacleStructure {
     pub watch: Vec<(usize, PointShape)>,
 }
 
-/// The limits of one module, resolved (`[module.limits]` over the file's `[limits]`).
-#[derive(Clone, Debug, Default, PartialEq)]
+/// The limits of one module, resolved (`[module.limits]` over the file's `[limits]`, over
+/// the domain's defaults).
+#[derive(Clone, Debug, PartialEq)]
 pub struct Limits {
-    /// `[δL_min, δL_max]` \[m\], if limited.
-    pub elongation: Option<[f64; 2]>,
+    /// `[δL_min, δL_max]` \[m\]: the file's, else [`crate::limits::default_elongation`].
+    pub elongation: [f64; 2],
     /// Margin `ε` of both elongation barriers \[m\].
     pub elongation_margin: f64,
-    /// `θ_max` \[rad\], if limited.
-    pub max_bend: Option<f64>,
+    /// `θ_max` \[rad\]: the file's, else [`crate::limits::DEFAULT_MAX_BEND_RAD`].
+    pub max_bend: f64,
     /// Margin `ε` of the bend barrier \[rad\].
     pub bend_margin: f64,
-    /// The class-K gains `[p1, p2]` of these barriers \[1/s\], each `None` when not given
-    /// (the run's barrier gains then apply).
+    /// The class-K gains `[p1, p2]` \[1/s\] the limits tables give, each `None` when not
+    /// given; they apply to the limits the file writes ([`Limits::gains_of`]).
     pub gains: [Option<f64>; 2],
+    /// Which limits the file writes; the others are the domain's defaults.
+    pub written: LimitFlags,
 }
 
 impl Limits {
-    /// Which barriers these limits make.
-    pub fn flags(&self) -> LimitFlags {
-        LimitFlags {
-            elongation: self.elongation.is_some(),
-            bend: self.max_bend.is_some(),
+    /// The limits of a module of rest length `rest_length` \[m\] whose robot file writes
+    /// none: the model's domain as a constraint (`crate::limits`): elongation
+    /// [`default_elongation`](crate::limits::default_elongation), bend
+    /// [`DEFAULT_MAX_BEND_RAD`](crate::limits::DEFAULT_MAX_BEND_RAD), zero margins, gains
+    /// [`DOMAIN_BARRIER_GAINS`](crate::limits::DOMAIN_BARRIER_GAINS).
+    pub fn domain(rest_length: f64) -> Limits {
+        Limits {
+            elongation: crate::limits::default_elongation(rest_length),
+            elongation_margin: 0.0,
+            max_bend: crate::limits::DEFAULT_MAX_BEND_RAD,
+            bend_margin: 0.0,
+            gains: [None, None],
+            written: LimitFlags::default(),
+        }
+    }
+
+    /// Whether the limit of barrier kind `kind` is the domain's default (`false` for a
+    /// written limit and for kinds that are not limits).
+    pub fn is_domain_default(&self, kind: BarrierKind) -> bool {
+        match kind {
+            BarrierKind::ElongationMin | BarrierKind::ElongationMax => !self.written.elongation,
+            BarrierKind::Bend => !self.written.bend,
+            _ => false,
+        }
+    }
+
+    /// The class-K gains `[p1, p2]` \[1/s\] of this module's barrier of kind `kind`: a
+    /// written limit takes its table's (`None`: the run's), a domain default
+    /// [`crate::limits::DOMAIN_BARRIER_GAINS`].
+    pub fn gains_of(&self, kind: BarrierKind) -> [Option<f64>; 2] {
+        if self.is_domain_default(kind) {
+            crate::limits::DOMAIN_BARRIER_GAINS.map(Some)
+        } else {
+            self.gains
         }
     }
 }
@@ -329,8 +364,9 @@ pub struct BarrierSpec {
 }
 
 /// Every barrier of `structure`, in the order of the generated arrays: the plate corners
-/// (module by module, corner by corner), then each module's limits (elongation min, max,
-/// bend), then each obstacle's watched points in file order.
+/// (module by module, corner by corner), then each module's three limits (elongation min,
+/// max, bend: every module has them, written or the domain's defaults), then each
+/// obstacle's watched points in file order.
 pub fn barrier_list(structure: &crate::Structure) -> Vec<BarrierSpec> {
     let mut list = Vec::new();
     for (i, &corners) in structure.corners.iter().enumerate() {
@@ -344,20 +380,21 @@ pub fn barrier_list(structure: &crate::Structure) -> Vec<BarrierSpec> {
             });
         }
     }
-    for (i, flags) in structure.limits.iter().enumerate() {
-        let limit = |kind, what: &str| BarrierSpec {
-            kind,
-            module: i,
-            point: None,
-            obstacle: None,
-            label: format!("module {} {what}", i + 1),
-        };
-        if flags.elongation {
-            list.push(limit(BarrierKind::ElongationMin, "elongation min"));
-            list.push(limit(BarrierKind::ElongationMax, "elongation max"));
-        }
-        if flags.bend {
-            list.push(limit(BarrierKind::Bend, "bend"));
+    // Every module's limits, written or the domain's defaults: the model's domain is a
+    // constraint of every robot (crate::domain).
+    for i in 0..structure.modules() {
+        for (kind, what) in [
+            (BarrierKind::ElongationMin, "elongation min"),
+            (BarrierKind::ElongationMax, "elongation max"),
+            (BarrierKind::Bend, "bend"),
+        ] {
+            list.push(BarrierSpec {
+                kind,
+                module: i,
+                point: None,
+                obstacle: None,
+                label: format!("module {} {what}", i + 1),
+            });
         }
     }
     for (o, obstacle) in structure.obstacles.iter().enumerate() {

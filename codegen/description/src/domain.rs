@@ -2,6 +2,12 @@
 //! most three quarters of a turn, a positive backbone length `L0 + δL` up to eleven rest
 //! lengths, speeds within 100 m/s), and the problem of a state outside it, located in a
 //! file when one gave it.
+//!
+//! The domain is also a constraint of the controller: every module always has its three
+//! limit barriers (docs/model.md §3), and where its robot file writes no limit, the
+//! domain's defaults (`crate::limits::DEFAULT_MIN_LENGTH_FRACTION` and its neighbours,
+//! [`crate::barriers::Limits::domain`]) keep the state well inside the domain, so that the
+//! safety filter cannot keep one barrier by driving another coordinate out of the model.
 
 use std::f64::consts::PI;
 use std::fmt;

@@ -73,16 +73,16 @@ impl Param {
     /// This parameter's value for a robot of the matching structure (NaN where the robot
     /// does not match, which [`pack_params`] never asks for).
     pub fn value(self, robot: &Robot) -> f64 {
-        let limits = |i: usize| robot.limits.get(i).cloned().unwrap_or_default();
+        let limits = |i: usize| robot.limits.get(i);
         let obstacle = |o: usize| robot.obstacles.get(o);
         let watched =
             |o: usize, k: usize| obstacle(o).and_then(|ob| ob.watch.get(k)).map(|w| w.point);
         match self {
-            Param::ElongationMin(i) => limits(i).elongation.map_or(f64::NAN, |e| e[0]),
-            Param::ElongationMax(i) => limits(i).elongation.map_or(f64::NAN, |e| e[1]),
-            Param::ElongationMargin(i) => limits(i).elongation_margin,
-            Param::MaxBend(i) => limits(i).max_bend.unwrap_or(f64::NAN),
-            Param::BendMargin(i) => limits(i).bend_margin,
+            Param::ElongationMin(i) => limits(i).map_or(f64::NAN, |l| l.elongation[0]),
+            Param::ElongationMax(i) => limits(i).map_or(f64::NAN, |l| l.elongation[1]),
+            Param::ElongationMargin(i) => limits(i).map_or(f64::NAN, |l| l.elongation_margin),
+            Param::MaxBend(i) => limits(i).map_or(f64::NAN, |l| l.max_bend),
+            Param::BendMargin(i) => limits(i).map_or(f64::NAN, |l| l.bend_margin),
             Param::ObstacleNormal(o, c) => match obstacle(o).map(|ob| ob.shape) {
                 Some(Shape::HalfSpace { normal, .. }) => normal[c],
                 _ => f64::NAN,
@@ -118,8 +118,8 @@ impl Param {
     }
 }
 
-/// The parameter layout of a structure: module-major, corner-minor; then each module's
-/// limits; then each obstacle's geometry, margin and watched points' numbers.
+/// The parameter layout of a structure: module-major, corner-minor; then every module's
+/// limits (written or the domain's defaults); then each obstacle's geometry, margin and watched points' numbers.
 pub fn param_layout(structure: &Structure) -> Vec<Param> {
     let mut layout = Vec::new();
     for (i, &corners) in structure.corners.iter().enumerate() {
@@ -136,17 +136,14 @@ pub fn param_layout(structure: &Structure) -> Vec<Param> {
             ]);
         }
     }
-    for (i, flags) in structure.limits.iter().enumerate() {
-        if flags.elongation {
-            layout.extend([
-                Param::ElongationMin(i),
-                Param::ElongationMax(i),
-                Param::ElongationMargin(i),
-            ]);
-        }
-        if flags.bend {
-            layout.extend([Param::MaxBend(i), Param::BendMargin(i)]);
-        }
+    for i in 0..structure.modules() {
+        layout.extend([
+            Param::ElongationMin(i),
+            Param::ElongationMax(i),
+            Param::ElongationMargin(i),
+            Param::MaxBend(i),
+            Param::BendMargin(i),
+        ]);
     }
     for (o, obstacle) in structure.obstacles.iter().enumerate() {
         match obstacle.kind {

@@ -12,7 +12,9 @@
 //! use softcbf_description::Robot;
 //! let robot = Robot::paper_sim();
 //! assert_eq!(robot.structure().modules(), 2);
-//! assert_eq!(softcbf_description::layout::pack_params(&robot).len(), 2 * (3 + 6 * 3));
+//! // Per module L0, d, r, each corner's cos φ, sin φ and margin, and its limits
+//! // (δL_min, δL_max, their margin, θ_max, its margin).
+//! assert_eq!(softcbf_description::layout::pack_params(&robot).len(), 2 * (3 + 6 * 3 + 5));
 //! ```
 
 mod barrier_tables;

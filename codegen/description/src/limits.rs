@@ -9,7 +9,9 @@
 //! inside them leaves the model's arithmetic finite (`tests/tests/descriptions.rs`).
 //!
 //! The state domain of the model (`q`, `q̇`) is bounded in the same spirit by
-//! [`crate::domain`].
+//! [`crate::domain`]; the limits every module has where its robot file writes none, which
+//! keep the controller inside that domain, are defined here too
+//! ([`DEFAULT_MIN_LENGTH_FRACTION`] and what follows it).
 
 /// What a number must be: finite, within `[min, max]` (or `(min, max]`), perhaps an
 /// integer. `unit` is for messages.
@@ -169,15 +171,68 @@ pub const GRAVITY_M_S2: Limit = Limit::closed(-100.0, 100.0, "m/s²");
 /// 1e4 1/s a barrier would be corrected within 0.1 ms, faster than any actuator.
 pub const BARRIER_GAIN_PER_S: Limit = Limit::above(0.0, 1e4, "1/s");
 
+// ---------------------------------------------------------------------------------------
+// The limits every module has where its robot file writes none: the model's domain as a
+// constraint of the controller (docs/model.md §3). One place for all of them; a file may
+// tighten them, not loosen them.
+
+/// The domain's default lower bound on a backbone's length, as a fraction `λ_min` of its
+/// rest length: `L0 + δL ≥ λ_min L0`, the elongation limit `δL_min = −(1 − λ_min) L0`
+/// that a module has when its robot file writes none, and the lowest `δL_min` a file may
+/// write. At `L → 0` the segment and its tendons describe nothing physical, and the
+/// plate-corner barriers no longer keep the state away from it once the corner margins
+/// are zero. 0.05 lies below what the paper's robot ever reaches: its set points go down
+/// to `δL = −0.07 m` on `L0 = 0.1 m` (`λ = 0.3`), users write −0.09 m (`λ = 0.1`), and its
+/// corner margins of 5 mm keep a straight backbone at `L ≥ 5 mm` already (a bent one is
+/// kept longer), so this row is never the first to bind there.
+pub const DEFAULT_MIN_LENGTH_FRACTION: f64 = 0.05;
+/// The domain's default upper elongation limit, as a multiple of the rest length:
+/// `δL_max = 4 L0`, and the largest `δL_max` a robot file may write. The paper's own
+/// filter stretches module 2 to `δL = 0.242 m = 2.42 L0`, at up to 3.2 m/s, in its
+/// simulation (`scenarios/paper-sim.toml`), and this row must leave that alone: at `3 L0`
+/// it binds there with [`DOMAIN_BARRIER_GAINS`] (the run moves by 6 mm) and would need
+/// stiffer gains, which the paper's rows at 33 Hz overshoot more often. No module of the
+/// repository comes near `4 L0`; [`crate::domain::MAX_ELONGATION_RATIO`], the domain
+/// itself, is ten.
+pub const DEFAULT_MAX_ELONGATION_RATIO: f64 = 4.0;
+/// The domain's default bend limit \[rad\]: `θ ≤ 1.25π` (225°), and the largest bend limit
+/// a robot file may write. It keeps the state an eighth of a turn inside the domain's
+/// [`crate::domain::MAX_BEND_RAD`], where the mass matrix is still well conditioned; the
+/// plates of any real module meet long before (the paper's at `θ = (L0 + δL)/r = 2 rad`,
+/// 115°, straight).
+pub const DEFAULT_MAX_BEND_RAD: f64 = 1.25 * std::f64::consts::PI;
+/// The class-K gains `[p1, p2]` \[1/s\] of a limit barrier at its domain default (a limit
+/// the robot file writes keeps its table's gains, or the run's). With the robot's gains
+/// (the paper's 10 1/s) the upper elongation row binds at the first tick of the paper's
+/// simulation, where the paper's filter asks for `δL̈₁ = 215 m/s²` from rest and the row
+/// allows `p1 p2 (δL_max − δL) = 40 m/s²` (360 m/s² with these gains); the run moves by
+/// 0.12 m. Stiffer rows leave motion alone until it comes closer to the limit, but at long
+/// holds the paper's continuous-time rows overshoot them: with the paper's rows at 33 Hz
+/// on 100 draws of `scenarios/verify-paper.toml`, gains of 30 1/s leave the QP relaxed in
+/// 24 runs and stop none, 50 1/s relax it in 97 and stop 4 (the plant integrated into a
+/// singular mass matrix). 30 1/s is the measured compromise (docs/model.md §3); the rows
+/// never bind in the paper's simulation (`tests/tests/domain_limits.rs`).
+pub const DOMAIN_BARRIER_GAINS: [f64; 2] = [30.0, 30.0];
+
+/// The domain's default elongation limits `[δL_min, δL_max]` \[m\] of a module of rest
+/// length `L0` \[m\]: `[−(1 − λ_min) L0, 4 L0]`, the widest a robot file may write.
+pub fn default_elongation(rest_length: f64) -> [f64; 2] {
+    [
+        DEFAULT_MIN_LENGTH_FRACTION * rest_length - rest_length,
+        DEFAULT_MAX_ELONGATION_RATIO * rest_length,
+    ]
+}
+
 /// An elongation limit `δL_min` or `δL_max` \[m\] (`[limits] elongation`): within the
-/// model's domain of ten rest lengths of at most 10 m; the robot file also needs
-/// `L0 + δL_min > 0` (a positive backbone length) and `δL_max ≤ 10 L0`.
+/// domain's defaults of any module of at most 10 m; for every module it applies to, the
+/// robot file also needs `δL_min ≥ −(1 − λ_min) L0` and `δL_max ≤ 4 L0`
+/// ([`default_elongation`]): a file may tighten the domain's limits, not loosen them.
 pub const ELONGATION_LIMIT_M: Limit = Limit::closed(-100.0, 100.0, "m");
-/// A bend limit `θ_max` \[deg\] (`[limits] max_bend_deg`): up to three quarters of a turn,
-/// the model's domain (`crate::domain::MAX_BEND_RAD`).
-pub const MAX_BEND_DEG: Limit = Limit::above(0.0, 270.0, "°");
+/// A bend limit `θ_max` \[deg\] (`[limits] max_bend_deg`): up to the domain's default of
+/// 225° ([`DEFAULT_MAX_BEND_RAD`], 1.25π): a file may tighten it, not loosen it.
+pub const MAX_BEND_DEG: Limit = Limit::above(0.0, 225.0, "°");
 /// The margin of a bend limit \[deg\]; it must also stay below the limit itself.
-pub const BEND_MARGIN_DEG: Limit = Limit::closed(0.0, 270.0, "°");
+pub const BEND_MARGIN_DEG: Limit = Limit::closed(0.0, 225.0, "°");
 /// A coordinate of an obstacle in the world \[m\] (a sphere's centre, a plane's offset):
 /// 100 m is far beyond any soft robot's reach.
 pub const POSITION_M: Limit = Limit::closed(-100.0, 100.0, "m");
@@ -303,6 +358,9 @@ mod tests {
                 assert_eq!((limit.min.fract(), limit.max.fract()), (0.0, 0.0));
             }
         }
+        // The bend limit a file may write ends at the domain's default.
+        assert!((MAX_BEND_DEG.max.to_radians() - DEFAULT_MAX_BEND_RAD).abs() < 1e-15);
+        assert_eq!(BEND_MARGIN_DEG.max, MAX_BEND_DEG.max);
         assert_eq!(INERTIA_KG_M2.describe(), "≥ 1e-16 and ≤ 1000000 kg·m²");
         assert_eq!(ANGLE_DEG.describe(), "≥ -360 and ≤ 360°");
         assert_eq!(AXIAL_STIFFNESS.describe(), "≥ 0 and ≤ 1e7 N/m");

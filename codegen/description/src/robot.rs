@@ -18,7 +18,7 @@ use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use toml::Spanned;
 
 use crate::barrier_tables::{LimitsTable, ObstacleTable};
-use crate::barriers::{LimitFlags, Limits, Obstacle, ObstacleStructure};
+use crate::barriers::{Limits, Obstacle, ObstacleStructure};
 use crate::gains::RawGain;
 use crate::limits;
 pub use crate::module::{Module, polygon_inertia};
@@ -56,7 +56,9 @@ pub struct Robot {
     pub routing: Routing,
     /// The modules, base first.
     pub modules: Vec<Module>,
-    /// The limits of each module (`[limits]`, `[module.limits]`), one entry per module.
+    /// The limits of each module (`[limits]`, `[module.limits]`, else the domain's
+    /// defaults: `Limits::domain`), one entry per module. Every module has
+    /// its three limit barriers.
     pub limits: Vec<Limits>,
     /// The obstacles (`[[obstacle]]`), in file order.
     pub obstacles: Vec<Obstacle>,
@@ -98,7 +100,9 @@ impl HardwareTable {
     }
 }
 
-/// The part of a robot description that decides which code is generated.
+/// The part of a robot description that decides which code is generated. Every module has
+/// its three limit barriers (elongation from below and above, bend), so limits are numbers,
+/// not structure.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Structure {
     /// Corners per plate, one entry per module (base first).
@@ -107,8 +111,6 @@ pub struct Structure {
     pub tendons: Vec<usize>,
     /// Tendon routing.
     pub routing: Routing,
-    /// Which limit barriers each module has, one entry per module.
-    pub limits: Vec<LimitFlags>,
     /// Each obstacle's kind and watched points.
     pub obstacles: Vec<ObstacleStructure>,
 }
@@ -128,7 +130,6 @@ impl Robot {
             corners: self.modules.iter().map(|m| m.corner_angles.len()).collect(),
             tendons: self.modules.iter().map(|m| m.tendon_angles.len()).collect(),
             routing: self.routing,
-            limits: self.limits.iter().map(Limits::flags).collect(),
             obstacles: self.obstacles.iter().map(Obstacle::structure).collect(),
         }
     }
@@ -165,14 +166,12 @@ impl Robot {
 }
 
 impl Structure {
-    /// A structure with plate-corner barriers only (no limits, no obstacles).
+    /// A structure without obstacles: the plate corners and every module's limits.
     pub fn new(corners: Vec<usize>, tendons: Vec<usize>, routing: Routing) -> Structure {
-        let limits = vec![LimitFlags::default(); corners.len()];
         Structure {
             corners,
             tendons,
             routing,
-            limits,
             obstacles: Vec::new(),
         }
     }
@@ -186,11 +185,6 @@ impl Structure {
     /// keys are (a generated model records the key of the structure it was built for).
     pub fn key(&self) -> String {
         format!("{self:?}")
-    }
-
-    /// Whether the structure has barriers other than the plate corners.
-    pub fn has_extra_barriers(&self) -> bool {
-        !self.obstacles.is_empty() || self.limits.iter().any(|f| f.elongation || f.bend)
     }
 }
 

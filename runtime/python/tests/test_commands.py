@@ -80,13 +80,17 @@ def test_a_robot_without_a_generated_model_runs_interpreted_and_says_how_to_buil
         model = robot.model()
     interpreted_warning(caught, robot_file)
     assert model.interpreted and model.generated_model == "interpreted"
-    assert model.nq == 9 and model.nb == 18
+    # Six corners and three limits (the domain's defaults) per module, as the table lists.
+    labels = model.barrier_labels
+    assert model.nq == 9 and model.nb == len(labels) == 3 * (6 + 3)
+    assert [l for l in labels if l.startswith("module 3 ")][6:] == [
+        "module 3 elongation min", "module 3 elongation max", "module 3 bend"]
     # The barrier Jacobian against central differences of the barriers.
     q = np.array([0.004, -0.002, 0.001, -0.003, 0.001, -0.002, 0.002, 0.003, 0.0])
     qd = np.array([0.01, -0.02, 0.005, 0.0, 0.01, -0.01, 0.02, 0.0, 0.01])
     values = model.evaluate(q, qd)
     jacobian = values["barrier_jacobian"]
-    assert jacobian.shape == (18, 9) and np.all(np.isfinite(values["mass_matrix"]))
+    assert jacobian.shape == (model.nb, 9) and np.all(np.isfinite(values["mass_matrix"]))
     h = 1e-6
     for k in range(9):
         step = np.zeros(9)

@@ -620,13 +620,18 @@ mod tests {
         assert!((hw.modules[0].zero_angles[0] - std::f64::consts::PI).abs() < 1e-15);
         // The zero length defaults to the module's rest length.
         assert_eq!(hw.modules[1].zero_lengths, [0.06; 3]);
-        // The paper's modules, with elongation and bend limits on each.
+        // The paper's modules, with elongation and bend limits written for each.
         let structure = robot.structure();
         assert_eq!(
             (&structure.corners, &structure.tendons),
             (&vec![6, 6], &vec![3, 3])
         );
-        assert!(structure.limits.iter().all(|f| f.elongation && f.bend));
+        assert!(
+            robot
+                .limits
+                .iter()
+                .all(|l| l.written.elongation && l.written.bend)
+        );
     }
 
     #[test]

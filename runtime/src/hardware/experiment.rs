@@ -336,10 +336,8 @@ pub fn module_room(robot: &Robot, tension_limits: &[[f64; 2]]) -> Vec<ModuleRoom
             };
             let corner_margin = module.margins.iter().copied().fold(0.0, f64::max);
             let mut lowest = -module.rest_length + corner_margin;
-            if let Some(l) = limits
-                && let Some([low, _]) = l.elongation
-            {
-                lowest = lowest.max(low + l.elongation_margin);
+            if let Some(l) = limits {
+                lowest = lowest.max(l.elongation[0] + l.elongation_margin);
             }
             let room = elongation_at_f_min - lowest;
             let extra_tension = if room.is_finite() && room > 0.0 {
@@ -355,10 +353,8 @@ pub fn module_room(robot: &Robot, tension_limits: &[[f64; 2]]) -> Vec<ModuleRoom
             } else {
                 PI / 2.0
             };
-            if let Some(l) = limits
-                && let Some(max_bend) = l.max_bend
-            {
-                bend = bend.min(max_bend - l.bend_margin);
+            if let Some(l) = limits {
+                bend = bend.min(l.max_bend - l.bend_margin);
             }
             let bend_tension = (0.5 * bend.max(0.0) * softer * module.bending_stiffness
                 / module.tendon_radius)

@@ -630,15 +630,19 @@ mod tests {
     /// elongation and bend limits on both modules, a half-space and a sphere each watching
     /// corner 3, the centre, a listed point and two backbone points of each module.
     fn every_barrier() -> Model {
-        use softcbf_description::barriers::{Limits, Obstacle, Watched};
+        use softcbf_description::barriers::{LimitFlags, Limits, Obstacle, Watched};
         let mut robot = Robot::paper_sim();
         robot.limits = vec![
             Limits {
-                elongation: Some([-0.05, 0.03]),
+                elongation: [-0.05, 0.03],
                 elongation_margin: 0.002,
-                max_bend: Some(1.7),
+                max_bend: 1.7,
                 bend_margin: 0.02,
                 gains: [None, None],
+                written: LimitFlags {
+                    elongation: true,
+                    bend: true,
+                },
             };
             2
         ];
@@ -810,16 +814,18 @@ mod tests {
                 }
             }
         }
-        // Corner heights are the barriers plus their margins.
+        // Corner heights are the barriers plus their margins; the limits have no corner.
         let mut b = vec![0.0; model.nb()];
         model.generated.barriers(&model.params, &q, &mut b);
         assert_eq!(shape.corners.len(), b.len());
-        for (gap, b) in shape.corners.iter().zip(&b) {
-            let gap = gap
-                .as_ref()
-                .expect("the paper robot has corner barriers only");
-            assert!((gap.height - gap.margin - b).abs() < 1e-15);
+        let table = model.generated.barrier_table();
+        for ((gap, b), info) in shape.corners.iter().zip(&b).zip(table) {
+            match gap {
+                Some(gap) => assert!((gap.height - gap.margin - b).abs() < 1e-15),
+                None => assert_ne!(info.kind, BarrierKind::PlateCorner, "{}", info.label),
+            }
         }
+        assert_eq!(shape.corners.iter().flatten().count(), 12);
     }
 
     #[test]

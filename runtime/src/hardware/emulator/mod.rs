@@ -488,20 +488,6 @@ fn structure_difference(robot: &Robot, plant: &Robot) -> Option<String> {
             format!("{:?}", a.routing).to_lowercase(),
             format!("{:?}", b.routing).to_lowercase(),
         )
-    } else if a.limits != b.limits {
-        let flags = |s: &softcbf_description::robot::Structure| {
-            s.limits
-                .iter()
-                .map(|f| match (f.elongation, f.bend) {
-                    (true, true) => "elongation and bend",
-                    (true, false) => "elongation",
-                    (false, true) => "bend",
-                    (false, false) => "none",
-                })
-                .collect::<Vec<_>>()
-                .join("; ")
-        };
-        differs("limit barriers per module:", flags(&a), flags(&b))
     } else if a.obstacles != b.obstacles {
         differs(
             "obstacles:",
