@@ -101,14 +101,14 @@ fn bench_scenario(c: &mut Criterion) {
     group.finish();
 }
 
-/// One tick at 33 Hz in each safety mode, at the states of a sampled run toward the paper's
-/// set point; `sampled_uncertain` on the paper robot declaring ±20 % (20 perturbed plants).
+/// One tick at 33 Hz in each safety mode, at the states of a certified run toward the paper's
+/// set point; `*_uncertain` on the paper robot declaring ±20 %.
 fn bench_safety_modes(c: &mut Criterion) {
     let (model, mut scenario) = paper();
     let period = 1.0 / 33.0;
     scenario.control_period = period;
     scenario.tolerances.h_max = period;
-    scenario.controller.safety = SafetyMode::Sampled;
+    scenario.controller.safety = SafetyMode::Certified;
     scenario.controller.hold = period;
     let run = simulate(&model, &scenario, true, &mut |_| {}).expect("simulation");
     let states: Vec<(Vec<f64>, Vec<f64>)> = (0..run.record.len())
@@ -128,8 +128,10 @@ fn bench_safety_modes(c: &mut Criterion) {
     for (name, safety, model) in [
         ("paper", SafetyMode::Paper, &model),
         ("hold_correction", SafetyMode::HoldCorrection, &model),
-        ("sampled", SafetyMode::Sampled, &model),
-        ("sampled_uncertain", SafetyMode::Sampled, &uncertain),
+        ("predicted", SafetyMode::Predicted, &model),
+        ("predicted_uncertain", SafetyMode::Predicted, &uncertain),
+        ("certified", SafetyMode::Certified, &model),
+        ("certified_uncertain", SafetyMode::Certified, &uncertain),
     ] {
         let mut settings = scenario.controller.clone();
         settings.safety = safety;

@@ -483,8 +483,10 @@ fn control_tick_and_plant_step_allocate_nothing() {
     let uncertain = Model::new(declared).unwrap();
     for (model, safety) in [
         (&model, SafetyMode::Paper),
-        (&model, SafetyMode::Sampled),
-        (&uncertain, SafetyMode::Sampled),
+        (&model, SafetyMode::Predicted),
+        (&uncertain, SafetyMode::Predicted),
+        (&model, SafetyMode::Certified),
+        (&uncertain, SafetyMode::Certified),
     ] {
         let nq = model.nq();
         let mut settings = ControllerSettings::paper(model);

@@ -178,8 +178,8 @@ fn the_filter_no_longer_stretches_a_module_out_of_the_domain() {
     // Per mode the overshoot of δL_max allowed: the sampled-data rows hold between ticks,
     // the paper's rows are met at ticks only (here they pass it by up to 1.0 mm).
     for (safety, period, overshoot) in [
-        (SafetyMode::Sampled, 0.002, 1e-5),
-        (SafetyMode::Sampled, 0.0303, 1e-5),
+        (SafetyMode::Certified, 0.002, 1e-5),
+        (SafetyMode::Certified, 0.0303, 1e-5),
         (SafetyMode::Paper, 0.001, 2e-3),
     ] {
         let overrides = Overrides {

@@ -101,7 +101,7 @@ fn paper_set_points_keep_every_barrier_between_ticks() {
     ] {
         let summary = run(
             model,
-            &scenario(model, set_point, 10.0, SafetyMode::Sampled, None),
+            &scenario(model, set_point, 10.0, SafetyMode::Certified, None),
         );
         let (lowest, troubled) = verdict(&summary);
         assert!(
@@ -129,7 +129,7 @@ fn random_set_points_keep_every_barrier_between_ticks() {
         let set_point = random_set_point(&mut rng, 2);
         let summary = run(
             &model,
-            &scenario(&model, &set_point, 4.0, SafetyMode::Sampled, None),
+            &scenario(&model, &set_point, 4.0, SafetyMode::Certified, None),
         );
         let (lowest, troubled) = verdict(&summary);
         assert_eq!(troubled, 0, "{set_point:?}: {summary:#?}");
@@ -164,7 +164,7 @@ fn plants_inside_the_declared_box_keep_every_barrier() {
                 model,
                 &set_point,
                 4.0,
-                SafetyMode::Sampled,
+                SafetyMode::Certified,
                 Some(plant.clone()),
             )
         };
@@ -359,7 +359,8 @@ fn report_safety_modes() {
         (SafetyMode::Paper, 1e-3),
         (SafetyMode::Paper, PERIOD),
         (SafetyMode::HoldCorrection, PERIOD),
-        (SafetyMode::Sampled, PERIOD),
+        (SafetyMode::Predicted, PERIOD),
+        (SafetyMode::Certified, PERIOD),
     ] {
         let (mut lowest, mut below, mut troubled, mut errors) = (f64::INFINITY, 0, 0, Vec::new());
         let mut worst = Vec::new();

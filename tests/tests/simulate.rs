@@ -133,7 +133,7 @@ fn sampled_rows_keep_three_square_barriers() {
     let model = Model::new(robot).unwrap();
     assert_eq!(model.nq(), 9);
     let mut scenario = file.resolve(&model).unwrap();
-    assert_eq!(scenario.controller.safety, SafetyMode::Sampled);
+    assert_eq!(scenario.controller.safety, SafetyMode::Certified);
     assert_eq!(scenario.controller.hold, scenario.control_period);
     scenario.duration = 3.0;
     let sampled = run(&model, &scenario, true);

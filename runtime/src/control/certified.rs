@@ -81,7 +81,7 @@ const XI_INFLATION: f64 = 1.5;
 /// \[m\]: keeps the assumed bound strictly above the computed one.
 const XI_FLOOR: f64 = 1e-12;
 /// Fixed-point rounds before the tube is given up.
-const ROUNDS: usize = 4;
+const ROUNDS: usize = 6;
 /// Largest `κ` (the Coriolis rate and the damping's uncertainty as a share of the
 /// damping) the bound accepts.
 const KAPPA_MAX: f64 = 0.9;
@@ -158,8 +158,11 @@ pub(super) struct CertifiedWorkspace {
     /// Per cell: a lower bound of the plant's smallest mass eigenvalue over the cell's box
     /// (0 where none is known).
     mass_floor: Vec<f64>,
-    /// A lower bound of `λ_min(M₀)`: `1/‖M₀⁻¹‖_F`.
+    /// A lower bound of `λ_min(S⁻¹ M₀ S⁻¹)`: `1/ρ(|S M₀⁻¹ S|)`, with `S = diag(√M₀ᵢᵢ)`
+    /// (the scaling makes the floor one of the mass matrix's shape, not of its units).
     mass_floor0: f64,
+    /// `S = diag(√M₀ᵢᵢ)` (`nq`).
+    scale: Vec<f64>,
     acc_sup: Vec<f64>,
     /// The first attempt's command `u = τ − g₀`, and the box of later attempts (a fraction
     /// of it; infinite: no box).
@@ -299,6 +302,7 @@ impl CertifiedWorkspace {
             force: vec![0.0; samples * nq],
             mass_floor: vec![0.0; samples],
             mass_floor0: 0.0,
+            scale: vec![0.0; nq],
             acc_sup: vec![0.0; samples * nq],
             first_center: vec![0.0; nq],
             shrink: f64::INFINITY,
@@ -888,14 +892,33 @@ fn linear_cells(model: &Model, ws: &mut CertifiedWorkspace, inverse_mass: &[f64]
                     chord.hi().min(from_start.hi()),
                 );
                 let at = c * nq + i;
+                let potential = (2.0 * jerk_energy / k[i]).sqrt();
+                let acc = Interval::new(acc.lo().max(-potential), acc.hi().min(potential));
                 cells.a[at] = acc;
-                let sup_acc = acc.mag().min((2.0 * jerk_energy / k[i]).sqrt()) * ROUNDING;
-                cells.e[at] = left[i][0]
-                    .hull(right[i][0])
-                    .widened(0.125 * h * h * sup_acc);
-                cells.v[at] = left[i][1]
-                    .hull(right[i][1])
-                    .widened(0.125 * h * h * sup_jerk);
+                let sup_acc = acc.mag() * ROUNDING;
+                // Each level two ways: the chord between the cell's ends widened by h²/8 of
+                // the bound on its second derivative, and the left end plus h times the range
+                // of its first derivative; the motion lies in both.
+                let rise = |start: Interval, rate: Interval| {
+                    start
+                        + Interval::new(
+                            (h * rate.lo() * ROUNDING).min(0.0),
+                            (h * rate.hi() * ROUNDING).max(0.0),
+                        )
+                };
+                let velocity = meet(
+                    left[i][1]
+                        .hull(right[i][1])
+                        .widened(0.125 * h * h * sup_jerk),
+                    rise(left[i][1], acc),
+                );
+                cells.v[at] = velocity;
+                cells.e[at] = meet(
+                    left[i][0]
+                        .hull(right[i][0])
+                        .widened(0.125 * h * h * sup_acc),
+                    rise(left[i][0], velocity),
+                );
                 cells.jerk_variation[at] =
                     ((h * jerk_energy / model.damping[i]).sqrt()).min(h * sup_jerk) * ROUNDING;
                 let from_jerk_start = left[i][3].widened(h * sup_snap);
@@ -903,17 +926,23 @@ fn linear_cells(model: &Model, ws: &mut CertifiedWorkspace, inverse_mass: &[f64]
                     from_jerk_start.lo().max(-sup_jerk),
                     from_jerk_start.hi().min(sup_jerk),
                 );
-                let potential = (2.0 * jerk_energy / k[i]).sqrt();
-                cells.a[at] = Interval::new(
-                    cells.a[at].lo().max(-potential),
-                    cells.a[at].hi().min(potential),
-                );
                 if motion == Motion::Corrected {
                     ws.acc_sup[at] = sup_acc;
                 }
             }
             std::mem::swap(&mut left, &mut right);
         }
+    }
+}
+
+/// The intersection of two enclosures of one quantity (both hold, so their meet does; the
+/// wider of the two where rounding leaves them disjoint).
+fn meet(a: Interval, b: Interval) -> Interval {
+    let (lo, hi) = (a.lo().max(b.lo()), a.hi().min(b.hi()));
+    if lo <= hi {
+        Interval::new(lo, hi)
+    } else {
+        a.hull(b)
     }
 }
 
@@ -978,16 +1007,26 @@ fn error_bounds(
     let nn = nq * nq;
     let s = ws.samples;
     let u = model.robot.uncertainty;
-    if ws.have_last {
+    // The last tick's bound, inflated, is the first guess; where that guess is too wide for
+    // the domain or for κ, the guess starts again from the floor (once).
+    let mut seeded = ws.have_last;
+    if seeded {
         for (x, last) in ws.xi.iter_mut().zip(&ws.last_xi) {
             *x = last * XI_INFLATION + XI_FLOOR;
         }
     } else {
         ws.xi.fill(XI_FLOOR);
     }
-    let frobenius: f64 = inverse_mass.iter().map(|x| x * x).sum::<f64>().sqrt();
-    ws.mass_floor0 = if frobenius > 0.0 {
-        1.0 / (frobenius * ROUNDING)
+    for i in 0..nq {
+        ws.scale[i] = mass[i * nq + i].max(0.0).sqrt();
+    }
+    // λ_max(S M₀⁻¹ S) ≤ ρ(|S M₀⁻¹ S|), the Perron root of the entries' magnitudes.
+    for e in 0..nn {
+        ws.scratch[e] = (inverse_mass[e] * ws.scale[e / nq] * ws.scale[e % nq]).abs();
+    }
+    let top = perron_bound(&ws.scratch, nq, &mut ws.iterate);
+    ws.mass_floor0 = if top > 0.0 && top.is_finite() && ws.scale.iter().all(|x| *x > 0.0) {
+        1.0 / (top * ROUNDING)
     } else {
         0.0
     };
@@ -1014,10 +1053,17 @@ fn error_bounds(
             ws.hull_q[i] = qh;
             ws.hull_v[i] = vh;
         }
+        let in_domain = box_in_domain(model, &ws.hull_q, &ws.hull_v)
+            && enclose_mass_rate(model, &mut ws.enclosure, &ws.hull_q, &ws.hull_v);
+        if !in_domain && seeded {
+            seeded = false;
+            ws.xi.fill(XI_FLOOR);
+            continue;
+        }
         if !box_in_domain(model, &ws.hull_q, &ws.hull_v) {
             return Err(failed(Uncertified::Domain, "tube outside the domain"));
         }
-        if !enclose_mass_rate(model, &mut ws.enclosure, &ws.hull_q, &ws.hull_v) {
+        if !in_domain {
             return Err(failed(Uncertified::Domain, "mass rate"));
         }
         let n = ws.enclosure.modules();
@@ -1035,6 +1081,11 @@ fn error_bounds(
         }
         let kappa = perron_bound(&ws.scratch, nq, &mut ws.iterate) + u.damping;
         if !(kappa.is_finite() && kappa <= KAPPA_MAX) {
+            if seeded {
+                seeded = false;
+                ws.xi.fill(XI_FLOOR);
+                continue;
+            }
             return Err(failed(Uncertified::Tube, "kappa"));
         }
         ws.damping_share = 1.0 - kappa;
@@ -1127,17 +1178,18 @@ fn error_bounds(
             ) {
                 return Err(failed(Uncertified::Domain, "spread jet"));
             }
-            // λ_min(M_p) ≥ (1 − σ_m) (λ_min(M₀) − ‖M(Q) − M₀‖_F) over the group's box.
-            let mut deviation = 0.0;
+            // λ_min(S⁻¹M_pS⁻¹) ≥ (1 − σ_m) (λ_min(S⁻¹M₀S⁻¹) − ‖S⁻¹(M(Q) − M₀)S⁻¹‖_F) over
+            // the group's box.
             for e in 0..nn {
                 let mut total = Interval::ZERO;
                 for b in 0..ws.enclosure.modules() {
                     total += ws.enclosure.mass_shares[b * nn + e];
                 }
-                let d = (total - mass[e]).mag();
-                deviation += d * d;
+                ws.scratch[e] = (total - mass[e]).mag() / (ws.scale[e / nq] * ws.scale[e % nq]);
             }
-            let floor = (1.0 - u.mass) * (ws.mass_floor0 - deviation.sqrt() * ROUNDING);
+            // ‖S⁻¹(M(Q) − M₀)S⁻¹‖₂ ≤ ρ(|S⁻¹(M(Q) − M₀)S⁻¹|).
+            let deviation = perron_bound(&ws.scratch, nq, &mut ws.iterate);
+            let floor = (1.0 - u.mass) * (ws.mass_floor0 - deviation * ROUNDING);
             for c in group.clone() {
                 ws.mass_floor[c] = floor.max(0.0);
             }
@@ -1164,7 +1216,8 @@ fn error_bounds(
         }
         // Φ and the computed |ξ| at the end of each cell: the smallest of the dissipative
         // bound √(t Φ/D′_i), the elastic bound √(2Φ/K_i) and the inertial bound
-        // (1/λ_low) ∫₀ᵗ (t − s) ‖F̄(s)‖ ds (from d/dt √(2E) ≤ ‖F‖_{M_p⁻¹}).
+        // 1/(Sᵢ λ_low) ∫₀ᵗ (t − s) ‖S⁻¹F̄(s)‖ ds, λ_low a floor of λ_min(S⁻¹M_pS⁻¹) (from
+        // d/dt √(2E) ≤ ‖F‖_{M_p⁻¹} ≤ ‖S⁻¹F‖/√λ_low and |ξ̇ᵢ| ≤ √(2E)/(Sᵢ √λ_low)).
         let mut phi = 0.0;
         let mut closed = true;
         let mut lowest_mass = f64::INFINITY;
@@ -1184,7 +1237,7 @@ fn error_bounds(
             for c2 in 0..=c {
                 let mut n2 = 0.0;
                 for i in 0..nq {
-                    n2 += ws.force[c2 * nq + i].powi(2);
+                    n2 += (ws.force[c2 * nq + i] / ws.scale[i]).powi(2);
                 }
                 let middle = 0.5 * (ws.time(c2) + ws.time(c2 + 1));
                 moment += n2.sqrt() * ws.cell(c2) * (t - middle);
@@ -1198,7 +1251,7 @@ fn error_bounds(
             for i in 0..nq {
                 let dissipation = (t * phi / (ws.damping_share * model.damping[i])).sqrt();
                 let elastic = (2.0 * phi / model.stiffness[i]).sqrt();
-                let value = dissipation.min(elastic).min(inertial) * ROUNDING;
+                let value = dissipation.min(elastic).min(inertial / ws.scale[i]) * ROUNDING;
                 ws.xi_computed[c * nq + i] = value;
                 closed &= value < ws.xi[c * nq + i];
             }

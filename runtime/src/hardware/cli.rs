@@ -1135,7 +1135,7 @@ mod tests {
         assert_eq!(report.reference.source, Source::RobotFile);
         assert_eq!(
             report.safety,
-            Sourced::new(SafetyMode::Sampled, Source::RobotFile)
+            Sourced::new(SafetyMode::Certified, Source::RobotFile)
         );
 
         let (settings, report) = settings_of(&[

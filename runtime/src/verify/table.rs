@@ -476,7 +476,7 @@ mod tests {
             draw: Draw {
                 seed: u64::MAX - run as u64,
                 group: 1,
-                safety: SafetyMode::Sampled,
+                safety: SafetyMode::Certified,
                 control_period: 0.0303,
                 set_point: vec![0.1 / 3.0, -1e-300, 0.0, 2.5e-7, -0.07, 1.0 / 7.0],
                 initial_q: vec![0.0; 6],
