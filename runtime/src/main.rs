@@ -18,6 +18,7 @@ use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{settings_report, simulate};
+use softcbf::verdict::{Limits, Verdict, judge};
 use softcbf_description::limits;
 
 #[derive(Parser)]
@@ -160,7 +161,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
         Command::Plot(args) => softcbf::replot::plot(args, console),
         Command::Identify(args) => softcbf::identify::run(args, console),
-        Command::Verify(args) => softcbf::verify::cli::verify(args, console),
+        Command::Verify(args) => softcbf::verify::cli::verify_interruptible(args, console),
         Command::Simulate(args) => run_simulation(args, console),
     }
 }
@@ -185,6 +186,10 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         Some(path) => ScenarioFile::load(path).map_err(|e| e.to_string())?,
         None => ScenarioFile::paper_sim(),
     };
+    // The scenario's own robot is read and checked also when --robot replaces it.
+    if args.robot.is_some() {
+        file.load_robot().map_err(|e| e.to_string())?;
+    }
     let robot = match &args.robot {
         Some(path) => load_robot(Some(path)),
         None => file
@@ -259,33 +264,16 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
     console.say(&format!("wrote {}", names.join(", ")));
 
-    let mut code = exit::OK;
-    for run in std::iter::once(&main).chain(&comparison) {
-        let summary = &run.summary;
-        if let Some(why) = &summary.stopped {
-            eprintln!("error: the {} run stopped early: {why}", summary.controller);
-            code = exit::worst(code, exit::ERROR);
-        }
-        let counts = &summary.counts;
-        if counts.invalid_state + counts.failed > 0 {
-            eprintln!(
-                "error: the {} run had {} ticks with an invalid state and {} failed QPs \
-                 (the zero command was applied)",
-                summary.controller, counts.invalid_state, counts.failed
-            );
-            code = exit::worst(code, exit::UNSAFE);
-        }
+    // The exit status is the verdict on the run asked for (filtered, or with --no-filter
+    // plain PD+); a comparison beside it is reported, not judged: it is there to fail.
+    let verdict = judge(&main.summary.outcome(), &Limits::new(threshold));
+    console.say(&format!("verdict: {}", verdict.line()));
+    match &verdict {
+        Verdict::Safe => {}
+        Verdict::Unsafe(why) => eprintln!("error: unsafe run: {why}"),
+        Verdict::NotRun(why) | Verdict::Fault(why) => eprintln!("error: {why}"),
     }
-    // Only the filtered run promises to keep the barriers; plain PD+ is the comparison.
-    let lowest = &main.summary.min_barrier;
-    if filter && lowest.value < threshold {
-        eprintln!(
-            "error: unsafe run: lowest barrier {:.3e} {} ({}, t = {:.3} s) is below the \
-             threshold {threshold:e} (--barrier-threshold, m or rad)",
-            lowest.value, lowest.unit, lowest.label, lowest.t
-        );
-        code = exit::worst(code, exit::UNSAFE);
-    }
+    let mut code = verdict.status();
     if let Some(error) = console.error() {
         eprintln!("error: {error}");
         code = exit::worst(code, exit::ERROR);

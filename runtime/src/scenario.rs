@@ -416,7 +416,23 @@ impl ScenarioFile {
             None,
         );
         self.check_record_period(&c, &record_period, &control_period, &duration)?;
-        let plant = self.plant(&c, model, overrides)?;
+        let plant = self.plant(&c, &model.robot, overrides)?;
+        // Every value of the file is checked, also one the command line replaces (the file
+        // may be run without the option another time), against the robot the file names
+        // (the run's may be another one, given on the command line).
+        let replaced = overrides.set_point.is_some() && self.raw.reference.is_some()
+            || overrides.plant.is_some() && self.plant_path().is_some();
+        let file_robot = match replaced {
+            true => Some(
+                self.load_robot()
+                    .and_then(|robot| robot.map_or_else(|| crate::cli::load_robot(None), Ok))?,
+            ),
+            false => None,
+        };
+        let own = file_robot.as_ref().unwrap_or(&model.robot);
+        if overrides.plant.is_some() && self.plant_path().is_some() {
+            self.plant(&c, own, &Overrides::default())?;
+        }
 
         let robot = &model.robot;
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
@@ -424,6 +440,16 @@ impl ScenarioFile {
 
         let reference = match &overrides.set_point {
             Some(point) => {
+                if self.raw.reference.is_some() {
+                    // At the file's own period (the spacing of its waypoints).
+                    let file_period = number(
+                        &raw.control_period,
+                        "control_period",
+                        &limits::CONTROL_PERIOD_S,
+                    )?
+                    .unwrap_or(DEFAULT_CONTROL_PERIOD);
+                    self.reference(&c, own, file_period)?;
+                }
                 Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::CommandLine)
             }
             None => Sourced::new(self.reference(&c, robot, period)?, Source::Scenario),
@@ -593,7 +619,7 @@ impl ScenarioFile {
     fn plant(
         &self,
         c: &Checker<'_>,
-        model: &Model,
+        controller: &Robot,
         overrides: &Overrides,
     ) -> Result<Sourced<Option<Robot>>, ScenarioError> {
         let (path, source) = match (&overrides.plant, self.plant_path()) {
@@ -626,13 +652,13 @@ impl ScenarioFile {
             }
             Err(error) => return Err(error.into()),
         };
-        if let Some(difference) = structure_difference(&model.robot, &robot) {
+        if let Some(difference) = structure_difference(controller, &robot) {
             return Err(refuse(format!(
                 "the plant robot {} differs in structure from the controller's robot {}: \
                  {difference}; a plant may differ only in its numbers (stiffness, damping, \
                  masses, lengths), so that both use one generated model",
                 resolved.display(),
-                crate::settings::file_name(&model.robot.source)
+                crate::settings::file_name(&controller.source)
             )));
         }
         Ok(Sourced::new(Some(robot), source))

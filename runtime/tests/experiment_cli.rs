@@ -113,8 +113,15 @@ fn a_static_run_logs_its_rest_states_and_reports_them() {
     assert!(rows.iter().all(|r| r[step].is_finite()));
     for k in 0..at_rest as usize {
         let rows: Vec<&&Vec<f64>> = rest_rows.iter().filter(|r| r[step] == k as f64).collect();
-        // About a second of rest rows at 33 Hz.
-        assert!((30..=36).contains(&rows.len()), "step {k}: {}", rows.len());
+        // A second of rest rows: at 33 Hz about 33 (at most 36); a loaded machine's loop
+        // may tick less often in that second, never more.
+        assert!((2..=36).contains(&rows.len()), "step {k}: {}", rows.len());
+        let t = column(&header, "t [s]");
+        let span = rows[rows.len() - 1][t] - rows[0][t];
+        assert!(
+            (0.5..=1.1).contains(&span),
+            "step {k}: rest rows over {span} s"
+        );
         // At rest: every coordinate within the threshold over the rest rows (the quiet
         // window before them was, and nothing moves the robot while the set is held).
         for name in COORDINATES {
@@ -175,9 +182,14 @@ fn a_dynamic_run_keeps_its_tensions_in_their_limits_and_ends_by_itself() {
     // The hardware example's tension limits, [0.2, 40] N on every tendon.
     let (header, rows) = read_log(&out.join("trajectory.csv"));
     let (step, rest) = (column(&header, "step"), column(&header, "rest"));
+    let fresh = column(&header, "fresh");
     let mut steps = Vec::new();
     for r in &rows {
         assert_eq!(r[rest], 0.0);
+        if r[fresh] != 1.0 {
+            // A tick without a reading (a loaded machine) sent nothing: no tensions.
+            continue;
+        }
         if steps.last() != Some(&r[step]) {
             steps.push(r[step]);
         }

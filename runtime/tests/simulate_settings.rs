@@ -30,16 +30,30 @@ fn simulate(args: &[&str]) -> Output {
         .expect("the softcbf binary runs")
 }
 
+/// Asserts that `output` is of a run that went as asked: safe (0), or with `--no-filter`
+/// plain PD+, which nothing keeps safe (3, saying so).
+fn assert_ran(output: &Output, args: &[&str]) {
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if args.contains(&"--no-filter") {
+        assert_eq!(output.status.code(), Some(3), "simulate {args:?}: {stderr}");
+        assert!(
+            stderr.contains("ticks ran without the safety filter"),
+            "simulate {args:?}: {stderr}"
+        );
+    } else {
+        assert!(
+            output.status.success(),
+            "simulate {args:?} failed: {stderr}"
+        );
+    }
+}
+
 /// Runs `simulate` with `args` into `out` and returns its summary.json.
 fn summary(out: &Path, args: &[&str]) -> Value {
     let mut all = vec!["--out", out.to_str().unwrap()];
     all.extend_from_slice(args);
     let output = simulate(&all);
-    assert!(
-        output.status.success(),
-        "simulate {args:?} failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert_ran(&output, args);
     let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
     serde_json::from_str(&text).unwrap()
 }
@@ -246,7 +260,7 @@ fn another_robot_is_named_in_the_one_line_summary() {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(output.status.success(), "{output:?}");
+    assert_ran(&output, &["--no-filter"]);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
         stdout.contains("paper-sim on hardware-example [pd]"),
@@ -356,7 +370,7 @@ fn record_period_and_plant_from_the_command_line() {
         "0.0005",
         "--no-filter",
     ]);
-    assert!(output.status.success(), "{output:?}");
+    assert_ran(&output, &["--no-filter"]);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
         stdout.contains("; recorded every 500 µs (command line);"),
@@ -423,5 +437,49 @@ fn record_period_and_plant_from_the_command_line() {
             && stderr.contains("it has 3 modules, the controller's robot 2"),
         "{stderr}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A value in the scenario file is checked also when an option replaces it: the file may
+/// be run without the option another time, and a bad value should not wait for it.
+#[test]
+fn file_values_are_checked_when_the_command_line_replaces_them() {
+    let dir = temp_dir("overridden");
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    let paper = repo("robots/paper-sim.toml");
+    let paper = paper.to_str().unwrap();
+    for (text, option, field) in [
+        (
+            "duration = 0.05\n[reference]\nset_point = [0, 0, 0]\n",
+            vec!["--set-point", "0,0,0,0,0,0"],
+            "3: field `reference.set_point`",
+        ),
+        (
+            "duration = 0.05\nrobot = \"nope.toml\"\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+            vec!["--robot", paper],
+            "2: field `robot`",
+        ),
+        (
+            "duration = 0.05\nplant = \"nope.toml\"\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+            vec!["--plant", paper],
+            "2: field `plant`",
+        ),
+        (
+            "duration = -1.0\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+            vec!["--duration", "0.05"],
+            "1: field `duration`",
+        ),
+    ] {
+        let file = dir.join("scenario.toml");
+        std::fs::write(&file, text).unwrap();
+        let mut args = vec!["--scenario", file.to_str().unwrap(), "--out", out];
+        args.extend(option.iter().copied());
+        let stderr = refused(&args, 1);
+        assert!(
+            stderr.contains(&format!("{}:{field}", file.display())),
+            "{option:?}: {stderr}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -23,6 +23,7 @@ use softcbf::hardware::run_loop::{
 use softcbf::model::Model;
 use softcbf::protocol::Bus;
 use softcbf::record::Record;
+use softcbf::verdict::{Limits, Verdict};
 use softcbf_description::robot::Robot;
 
 fn example() -> Robot {
@@ -86,16 +87,18 @@ fn run_against_emulator(faults: Faults, duration: f64) -> Outcome {
 /// `out`, also writes the log and figures there as `softcbf run` does.
 fn run_with(robot: Robot, faults: Faults, duration: f64, out: Option<&Path>) -> Outcome {
     let hardware = description::load(&robot).unwrap().unwrap();
-    run_with_hardware(robot, hardware, faults, duration, out)
+    run_with_hardware(robot, hardware, faults, duration, out, 33.0)
 }
 
-/// [`run_with`], the loop driving the servos through `hardware` (the robot file's, changed).
+/// [`run_with`], the loop driving the servos through `hardware` (the robot file's, changed),
+/// at `rate` Hz (every tick overruns when the bus cannot hold it).
 fn run_with_hardware(
     robot: Robot,
     hardware: Hardware,
     faults: Faults,
     duration: f64,
     out: Option<&Path>,
+    rate: f64,
 ) -> Outcome {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal");
@@ -134,7 +137,9 @@ fn run_with_hardware(
     let mut bus = Bus::new(port, Duration::from_secs_f64(timeout));
     let map = TendonMap::with_hardware(&robot, hardware.clone()).unwrap();
     let model = Model::new(robot).unwrap();
-    let mut settings = RunSettings::new(33.0, hardware.set_point.clone());
+    let mut settings = RunSettings::new(rate, hardware.set_point.clone());
+    // Half the paper's rate at least, as at 33 Hz (a faster loop asked only overruns).
+    settings.min_rate = Some(rate.min(33.0) / 2.0);
     settings.duration = Some(duration);
     // 33 Hz also on a bus too slow for it (late replies): every tick then overruns. The
     // refusal of such a rate is tested in runtime/tests/bus_check_cli.rs.
@@ -354,7 +359,7 @@ fn velocity_from_filtered_differences_also_holds_the_barriers() {
     // by about a tick, and with it the corrected rows did worse (−9.6 mm) than the paper's
     // (−0.4 mm) here, as robots/README.md says.
     hardware.safety = Some(SafetyMode::Paper);
-    let out = run_with_hardware(robot, hardware, Faults::default(), 3.0, None);
+    let out = run_with_hardware(robot, hardware, Faults::default(), 3.0, None, 33.0);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);
     let min = min_barrier(&out.log);
@@ -454,4 +459,40 @@ fn the_safe_start_retries_missed_replies_like_the_loop() {
         out.bus.fates
     );
     assert!(out.bus.torque.iter().all(|on| !on));
+}
+
+/// Deadlines missed beyond the allowed fraction make the verdict unsafe, whatever the
+/// barriers did: at 2000 Hz, far beyond the ideal bus's 500 Hz or so (and beyond any
+/// loaded machine's), every tick overruns.
+#[test]
+fn missed_deadlines_are_in_the_verdict() {
+    let robot = example();
+    let hardware = description::load(&robot).unwrap().unwrap();
+    let out = run_with_hardware(robot, hardware, Faults::default(), 1.0, None, 2000.0);
+    let s = &out.summary;
+    assert!(s.commands > 10, "{} commands", s.commands);
+    assert!(
+        s.deadlines.deadline_overruns * 10 >= s.ticks * 9,
+        "{} of {} ticks overran",
+        s.deadlines.deadline_overruns,
+        s.ticks
+    );
+    let limits = Limits::new(-1e-3);
+    let verdict = s.verdict(&limits);
+    assert_eq!(verdict.status(), softcbf::exit::UNSAFE, "{verdict:?}");
+    assert!(
+        verdict.line().contains("ticks overran their deadline"),
+        "{verdict:?}"
+    );
+    // Allowed by the operator, the same run is judged on its barriers alone.
+    let all_allowed = Limits {
+        max_overrun_fraction: 1.0,
+        ..limits
+    };
+    assert!(
+        min_barrier(&out.log) >= -1e-3,
+        "the barriers held: {}",
+        min_barrier(&out.log)
+    );
+    assert_eq!(s.verdict(&all_allowed), Verdict::Safe);
 }

@@ -158,18 +158,17 @@ impl VerifySpec {
                 .map(|v| c.integer_within(v, &format!("verify.{field}"), limit))
                 .transpose()
         };
-        let runs = match overrides.runs {
-            Some(runs) => runs,
-            None => integer(&raw.runs, "runs", &RUNS)?.map_or(DEFAULT_RUNS, |n| n as usize),
-        };
-        let seed = match overrides.seed {
-            Some(seed) => seed,
-            None => integer(&raw.seed, "seed", &SEED)?.map_or(1, |n| n as u64),
-        };
-        let duration = match overrides.duration {
-            Some(d) => Some(d),
-            None => number(&raw.duration, "duration", &limits::DURATION_S)?,
-        };
+        // Every value of the file is checked, also one the command line replaces.
+        let file_runs = integer(&raw.runs, "runs", &RUNS)?;
+        let file_seed = integer(&raw.seed, "seed", &SEED)?;
+        let file_duration = number(&raw.duration, "duration", &limits::DURATION_S)?;
+        let runs = overrides
+            .runs
+            .unwrap_or_else(|| file_runs.map_or(DEFAULT_RUNS, |n| n as usize));
+        let seed = overrides
+            .seed
+            .unwrap_or_else(|| file_seed.map_or(1, |n| n as u64));
+        let duration = overrides.duration.or(file_duration);
         let record_period = number(
             &raw.record_period,
             "record_period",
