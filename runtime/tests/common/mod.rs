@@ -270,3 +270,27 @@ pub fn finish_run_within(
     );
     (status.code().unwrap_or(-1), stdout, stderr)
 }
+
+/// The words of the faults a machine loaded by other work causes rather than the code:
+/// the loop below `--min-rate` or paused near the servos' Bus Watchdog, a torque-off the
+/// starved emulator did not confirm in time (tests read the servos independently after).
+pub const LOAD_FAULTS: [&str; 3] = [
+    "below the minimum",
+    "the loop paused",
+    "torque-off not confirmed",
+];
+
+/// Whether a run's status `code` is `expected`. A stop on one of the [`LOAD_FAULTS`] (exit
+/// status 4, its words in `output`: the run's standard output and error) is printed as a
+/// loaded machine's and answers `false`: the test then checks only what holds at any load.
+/// Any other status fails the test.
+pub fn status_is(code: i32, expected: i32, output: &str, what: &str) -> bool {
+    if code == expected {
+        return true;
+    }
+    if code == 4 && LOAD_FAULTS.iter().any(|words| output.contains(words)) {
+        println!("{what}: a loaded machine's fault, the verdict not checked:\n{output}");
+        return false;
+    }
+    panic!("{what}: exit {code}, expected {expected}:\n{output}");
+}
