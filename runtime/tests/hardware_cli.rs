@@ -373,8 +373,10 @@ fn a_run_whose_standard_output_was_lost_is_not_a_success() {
         "| head -3",
     );
     status_is(code, 1, &stderr, "| head -3");
+    // Unless a loaded machine's bus check refused 33 Hz before the reader went.
     assert!(
-        stderr.contains("cannot write standard output: its reader closed it"),
+        stderr.contains("cannot write standard output: its reader closed it")
+            || stderr.contains("cannot hold it"),
         "{stderr}"
     );
     whole_rows(&out.join("trajectory.csv"), false);
