@@ -389,7 +389,7 @@ fn the_command_the_emulator_prints_works_as_printed() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     // The first command of docs/hardware.md with the factory preset: a USB adapter's
     // 16 ms latency timer, which the robot file's 10 ms reply timeout cannot meet.
-    let mut emulator = Command::new(BIN)
+    let mut child = Command::new(BIN)
         .arg("emulate")
         .arg("--robot")
         .arg(robot())
@@ -398,7 +398,7 @@ fn the_command_the_emulator_prints_works_as_printed() {
         .stderr(Stdio::inherit())
         .spawn()
         .unwrap();
-    let lines = lines_of(emulator.stdout.take().unwrap());
+    let lines = lines_of(child.stdout.take().unwrap());
     let seen = until(&lines, "connect with:", Duration::from_secs(60));
     thread::spawn(move || for _ in lines {});
     let command = seen
@@ -412,6 +412,11 @@ fn the_command_the_emulator_prints_works_as_printed() {
         .find_map(|l| l.strip_prefix("port: "))
         .unwrap()
         .to_string();
+    // Stopped with SIGTERM when dropped, also when the test fails.
+    let _emulator = Emulator {
+        child,
+        port: port.clone(),
+    };
     // As printed (the words have no quotes here), from a fresh folder: it writes out/run.
     let words: Vec<&str> = command.split_whitespace().collect();
     assert_eq!(words[0], "softcbf");
@@ -451,8 +456,6 @@ fn the_command_the_emulator_prints_works_as_printed() {
         }
     }
     assert_torque_off(&port, "the printed command");
-    let _ = Command::new("kill").arg(emulator.id().to_string()).status();
-    let _ = wait_for(&mut emulator, Duration::from_secs(10), "emulator");
     std::fs::remove_dir_all(&cwd).unwrap();
 }
 
