@@ -135,6 +135,10 @@ pub enum ScenarioError {
     /// A command-line option, named in the message.
     #[error("{0}")]
     Option(String),
+    /// Something the run needs that neither the command line, the scenario nor the robot
+    /// file gives; the message says what, and every way to give it.
+    #[error("{0}")]
+    Missing(String),
 }
 
 /// A parsed scenario file whose sizes are not yet checked against a robot.
@@ -356,6 +360,12 @@ impl ScenarioFile {
                     field: String::new(),
                     message,
                 },
+                ScenarioError::Missing(message) => FileError::Invalid {
+                    path: self.path.clone(),
+                    line: 0,
+                    field: "reference".to_string(),
+                    message,
+                },
             })
     }
 
@@ -422,11 +432,17 @@ impl ScenarioFile {
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
         let initial_qd = state(&c, raw.initial.qd.as_ref(), "initial.qd", robot, Velocities)?;
 
-        let reference = match &overrides.set_point {
-            Some(point) => {
+        let reference = match (&overrides.set_point, &raw.reference, &robot.set_point) {
+            (Some(point), _, _) => {
                 Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::CommandLine)
             }
-            None => Sourced::new(self.reference(&c, robot, period)?, Source::Scenario),
+            (None, Some(_), _) => {
+                Sourced::new(self.reference(&c, robot, period)?, Source::Scenario)
+            }
+            (None, None, Some(point)) => {
+                Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::RobotFile)
+            }
+            (None, None, None) => return Err(ScenarioError::Missing(self.no_set_point(robot))),
         };
 
         let nq = model.nq();
@@ -698,6 +714,30 @@ impl ScenarioFile {
             .or(self.raw.control_period.as_ref())
             .map_or(0..0, Spanned::span);
         Err(c.invalid(&span, "duration", problem).into())
+    }
+
+    /// What a run lacks when neither the command line, the scenario nor the robot file
+    /// gives a set point, and every way to give one.
+    fn no_set_point(&self, robot: &Robot) -> String {
+        let nq = 3 * robot.modules.len();
+        let names: Vec<String> = (1..=robot.modules.len())
+            .flat_map(|k| [format!("Δx{k}"), format!("Δy{k}"), format!("δL{k}")])
+            .collect();
+        let shown = if names.len() > 6 {
+            format!("{}, …, {}", names[..3].join(","), names[nq - 1])
+        } else {
+            names.join(",")
+        };
+        format!(
+            "no set point for the robot {} ({}): its file has no `set_point` and the scenario \
+             {} no [reference]. Give one of: `--set-point {shown}` ({nq} numbers [m], 3 per \
+             module; `set_point=` in Python), a line `set_point = [...]` with {nq} numbers in \
+             the robot file (robots/README.md), or a scenario file with a [reference] table \
+             (`--scenario FILE`, scenarios/README.md)",
+            robot.name,
+            crate::settings::file_name(&robot.source),
+            self.path.display(),
+        )
     }
 
     fn reference(
