@@ -436,8 +436,8 @@ impl ScenarioFile {
             (Some(point), _, _) => {
                 Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::CommandLine)
             }
-            (None, Some(_), _) => {
-                Sourced::new(self.reference(&c, robot, period)?, Source::Scenario)
+            (None, Some(table), _) => {
+                Sourced::new(self.reference(&c, table, robot, period)?, Source::Scenario)
             }
             (None, None, Some(point)) => {
                 Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::RobotFile)
@@ -740,19 +740,14 @@ impl ScenarioFile {
         )
     }
 
+    /// The file's `[reference]` table, checked against `robot`.
     fn reference(
         &self,
         c: &Checker<'_>,
+        reference: &Spanned<RawReference>,
         robot: &Robot,
         control_period: f64,
     ) -> Result<ReferenceSpec, FileError> {
-        let Some(reference) = &self.raw.reference else {
-            return Err(c.invalid(
-                &(0..0),
-                "reference",
-                "missing: add a [reference] table with `set_point = [...]` or `waypoints`".into(),
-            ));
-        };
         let span = reference.span();
         match (
             &reference.get_ref().set_point,
