@@ -258,21 +258,18 @@ fn the_barrier_panel_shows_what_the_paper_shows() {
         .map(|r| (number(r, "x"), number(r, "y"), number(r, "width")))
         .collect();
     assert_eq!(blocks.len(), 2, "a block of labels in each column");
-    for (x, y, width) in blocks {
-        // The zero line of its panel: the horizontal black line across the block nearest
-        // to its top (the panels' frames are further away).
-        let zero = lines
+    for (x, y, _) in blocks {
+        // The zero line of its panel: where the value axis left of the block labels 0 (the
+        // lowest such label above the block's top: the zoomed row's is below it).
+        let zero = all
             .iter()
-            .filter(|(stroke, points)| {
-                stroke == "#000000"
-                    && points.len() == 2
-                    && points[0].1 == points[1].1
-                    && points[0].0 < x + width
-                    && points[1].0 > x
-            })
-            .map(|(_, points)| points[0].1)
-            .min_by(|a, b| (a - y).abs().total_cmp(&(b - y).abs()))
-            .unwrap();
+            .filter(|(tx, ty, t)| *tx < x && *ty <= y && t.parse::<f64>() == Ok(0.0))
+            .map(|&(_, ty, _)| ty)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(
+            zero.is_finite(),
+            "no 0 on the value axis left of the block at {x}, {y}"
+        );
         assert!(
             y - zero >= 8.0,
             "the labels' block at y = {y} is {} px under the zero line at {zero}",

@@ -49,17 +49,15 @@ fn row_kind(figure: &Figure, r: usize) -> RowKind {
 
 /// Caption and value-axis label of row `r`.
 fn row_text(figure: &Figure, r: usize) -> (String, String) {
-    match (row_kind(figure, r), barrier_row(figure, r)) {
+    let row = barrier_row(figure, r);
+    match (row_kind(figure, r), row) {
         (RowKind::Barriers(_), Some(row)) => row.text(),
         (RowKind::Zoom(_), Some(row)) => row.zoom_text(),
-        (kind, _) => {
-            let k = match kind {
-                RowKind::Coordinates(k) => k,
-                _ => 0,
-            };
+        (RowKind::Coordinates(k), _) => {
             let (caption, axis) = ROW_TEXT[k.min(COORDINATE_ROWS - 1)];
             (caption.to_string(), axis.to_string())
         }
+        (_, None) => (String::new(), String::new()),
     }
 }
 
@@ -73,16 +71,12 @@ fn barrier_row<'f>(figure: &'f Figure, r: usize) -> Option<&'f BarrierRow> {
 
 /// Value range of row `r`.
 fn row_range(figure: &Figure, r: usize) -> std::ops::Range<f64> {
-    match (row_kind(figure, r), barrier_row(figure, r)) {
+    let row = barrier_row(figure, r);
+    match (row_kind(figure, r), row) {
         (RowKind::Barriers(_), Some(row)) => row.range.clone(),
         (RowKind::Zoom(_), Some(row)) => row.zoom.clone().unwrap_or(row.range.clone()),
-        (kind, _) => {
-            let k = match kind {
-                RowKind::Coordinates(k) => k,
-                _ => 0,
-            };
-            figure.rows[k.min(COORDINATE_ROWS - 1)].clone()
-        }
+        (RowKind::Coordinates(k), _) => figure.rows[k.min(COORDINATE_ROWS - 1)].clone(),
+        (_, None) => 0.0..1.0,
     }
 }
 
