@@ -36,7 +36,8 @@ struct Cli {
 /// wins over the robot file, which wins over the built-in default (`softcbf::settings`).
 #[derive(Args)]
 struct SimulateArgs {
-    /// Scenario file (default: the embedded scenarios/paper-sim.toml).
+    /// Scenario file (default: the embedded scenarios/paper-sim.toml, which fits a robot of
+    /// any structure: it starts at rest and drives toward the robot file's `set_point`).
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Robot file (default: the scenario's robot, else the embedded paper robot).
@@ -47,7 +48,8 @@ struct SimulateArgs {
     /// controller's robot).
     #[arg(long, value_name = "FILE")]
     plant: Option<PathBuf>,
-    /// Set point `Δx,Δy,δL,…` (m), replacing the scenario's reference.
+    /// Set point `Δx,Δy,δL,…` (m), replacing the scenario's reference and the robot
+    /// file's `set_point`.
     #[arg(long, allow_hyphen_values = true)]
     set_point: Option<String>,
     /// Simulated time (s).

@@ -135,6 +135,10 @@ pub enum ScenarioError {
     /// A command-line option, named in the message.
     #[error("{0}")]
     Option(String),
+    /// Something the run needs that neither the command line, the scenario nor the robot
+    /// file gives; the message says what, and every way to give it.
+    #[error("{0}")]
+    Missing(String),
 }
 
 /// A parsed scenario file whose sizes are not yet checked against a robot.
@@ -356,6 +360,12 @@ impl ScenarioFile {
                     field: String::new(),
                     message,
                 },
+                ScenarioError::Missing(message) => FileError::Invalid {
+                    path: self.path.clone(),
+                    line: 0,
+                    field: "reference".to_string(),
+                    message,
+                },
             })
     }
 
@@ -438,9 +448,9 @@ impl ScenarioFile {
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
         let initial_qd = state(&c, raw.initial.qd.as_ref(), "initial.qd", robot, Velocities)?;
 
-        let reference = match &overrides.set_point {
-            Some(point) => {
-                if self.raw.reference.is_some() {
+        let reference = match (&overrides.set_point, &raw.reference, &robot.set_point) {
+            (Some(point), file_reference, _) => {
+                if let Some(table) = file_reference {
                     // At the file's own period (the spacing of its waypoints).
                     let file_period = number(
                         &raw.control_period,
@@ -448,11 +458,17 @@ impl ScenarioFile {
                         &limits::CONTROL_PERIOD_S,
                     )?
                     .unwrap_or(DEFAULT_CONTROL_PERIOD);
-                    self.reference(&c, own, file_period)?;
+                    self.reference(&c, table, own, file_period)?;
                 }
                 Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::CommandLine)
             }
-            None => Sourced::new(self.reference(&c, robot, period)?, Source::Scenario),
+            (None, Some(table), _) => {
+                Sourced::new(self.reference(&c, table, robot, period)?, Source::Scenario)
+            }
+            (None, None, Some(point)) => {
+                Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::RobotFile)
+            }
+            (None, None, None) => return Err(ScenarioError::Missing(self.no_set_point(robot))),
         };
 
         let nq = model.nq();
@@ -726,19 +742,38 @@ impl ScenarioFile {
         Err(c.invalid(&span, "duration", problem).into())
     }
 
+    /// What a run lacks when neither the command line, the scenario nor the robot file
+    /// gives a set point, and every way to give one.
+    fn no_set_point(&self, robot: &Robot) -> String {
+        let nq = 3 * robot.modules.len();
+        let names: Vec<String> = (1..=robot.modules.len())
+            .flat_map(|k| [format!("Δx{k}"), format!("Δy{k}"), format!("δL{k}")])
+            .collect();
+        let shown = if names.len() > 6 {
+            format!("{}, …, {}", names[..3].join(","), names[nq - 1])
+        } else {
+            names.join(",")
+        };
+        format!(
+            "no set point for the robot {} ({}): its file has no `set_point` and the scenario \
+             {} no [reference]. Give one of: `--set-point {shown}` ({nq} numbers [m], 3 per \
+             module; `set_point=` in Python), a line `set_point = [...]` with {nq} numbers in \
+             the robot file (robots/README.md), or a scenario file with a [reference] table \
+             (`--scenario FILE`, scenarios/README.md)",
+            robot.name,
+            crate::settings::file_name(&robot.source),
+            self.path.display(),
+        )
+    }
+
+    /// The file's `[reference]` table, checked against `robot`.
     fn reference(
         &self,
         c: &Checker<'_>,
+        reference: &Spanned<RawReference>,
         robot: &Robot,
         control_period: f64,
     ) -> Result<ReferenceSpec, FileError> {
-        let Some(reference) = &self.raw.reference else {
-            return Err(c.invalid(
-                &(0..0),
-                "reference",
-                "missing: add a [reference] table with `set_point = [...]` or `waypoints`".into(),
-            ));
-        };
         let span = reference.span();
         match (
             &reference.get_ref().set_point,

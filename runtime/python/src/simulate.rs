@@ -127,7 +127,8 @@ pub fn simulate(
         .map_err(value_error)?;
     let scenario = file.resolve_with(&model, &overrides).map_err(|e| match e {
         softcbf::scenario::ScenarioError::File(e) => file_error(py, &e),
-        softcbf::scenario::ScenarioError::Option(message) => value_error(message),
+        softcbf::scenario::ScenarioError::Option(message)
+        | softcbf::scenario::ScenarioError::Missing(message) => value_error(message),
     })?;
     let filter = scenario.controller.filter;
     let compare = filter && scenario.compare;

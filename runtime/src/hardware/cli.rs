@@ -724,11 +724,15 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     let progress_error = log.console_error().map(str::to_string);
     let log = log.into_inner();
     report(&summary, &limits, console);
-    if summary.experiment.is_some() && !summary.stop.is_fault() {
-        console.say(&format!(
-            "next: softcbf identify --robot {} {} --out identified.toml",
-            args.robot.display(),
-            args.out.display()
+    if let Some(experiment) = &summary.experiment
+        && !summary.stop.is_fault()
+    {
+        console.say(&super::next_step::after_experiment(
+            experiment.settings.kind,
+            &args.robot,
+            &robot.name,
+            &args.out,
+            &args.port,
         ));
     }
     let verdict = summary.verdict(&limits);

@@ -45,8 +45,10 @@ pub const DEFAULT_RUNS: usize = 1000;
 /// Default time between the rows the lowest barrier is taken over \[s\]: every
 /// millisecond, and at every tick of a faster loop.
 pub const DEFAULT_RECORD_PERIOD: f64 = 1e-3;
-/// Default threshold: a run whose lowest barrier falls below it is unsafe (m or rad).
-pub const DEFAULT_THRESHOLD: f64 = -1e-6;
+/// Default threshold: a run whose lowest barrier falls below it is unsafe (m or rad): the
+/// tolerance within which a barrier counts as held at zero, the figures' too
+/// ([`softcbf_description::limits::BARRIER_TOLERANCE_M`]).
+pub const DEFAULT_THRESHOLD: f64 = -softcbf_description::limits::BARRIER_TOLERANCE_M;
 /// Draws of an initial state before giving up on finding one inside the safe set.
 pub const INITIAL_STATE_TRIES: usize = 1000;
 
