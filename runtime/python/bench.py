@@ -44,9 +44,9 @@ def main():
 
     # Each safety mode's tick replays the states of its own run of the paper scenario, in
     # order, as a control loop would see them (the first second: the filter acts from
-    # 0 s with the paper's rows, from 0.32 s with the sampled-data rows).
+    # 0 s with the paper's rows, with the certified rows).
     out = np.empty(6)
-    for safety in ["paper", "sampled"]:
+    for safety in ["paper", "certified"]:
         run = softcbf.simulate(safety=safety, duration=1.0)
         rows = [(q.copy(), qd.copy()) for q, qd in zip(run.q[:-1], run.qd[:-1])]
 
@@ -69,8 +69,8 @@ def main():
     # file also asks for the PD+ comparison).
     show("simulate: paper scenario, 10 s at 1 kHz",
          batches(lambda: softcbf.simulate(compare=False), 1, count), 1e-3, "ms")
-    show("simulate: the same with sampled-data rows",
-         batches(lambda: softcbf.simulate(safety="sampled", compare=False), 1,
+    show("simulate: the same with certified rows",
+         batches(lambda: softcbf.simulate(safety="certified", compare=False), 1,
                  max(3, count // 3)), 1e-3, "ms")
 
 

@@ -26,6 +26,7 @@
 //! | [`identify`] | `softcbf identify`: stiffness, damping and actuator gains from run logs |
 //! | [`verify`] | `softcbf verify`: many closed-loop runs drawn from declared ranges, sharded and merged |
 //! | [`cli`] | what the subcommands share: loading robots, reading vectors and numbers |
+//! | [`verdict`] | one verdict per run (safe, unsafe, not run), whichever command computes it |
 //! | [`exit`] | the command's exit statuses (safe, unsafe, fault, never started) |
 //!
 //! # One control tick
@@ -75,4 +76,5 @@ pub mod scenario;
 pub mod settings;
 pub mod sim;
 pub mod spatial;
+pub mod verdict;
 pub mod verify;

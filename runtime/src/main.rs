@@ -18,6 +18,9 @@ use softcbf::model::Model;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{settings_report, simulate};
+use softcbf::verdict::{Limits, Verdict, judge};
+use softcbf::verify::start::StartSet;
+use softcbf_description::domain;
 use softcbf_description::limits;
 
 #[derive(Parser)]
@@ -35,7 +38,8 @@ struct Cli {
 /// wins over the robot file, which wins over the built-in default (`softcbf::settings`).
 #[derive(Args)]
 struct SimulateArgs {
-    /// Scenario file (default: the embedded scenarios/paper-sim.toml).
+    /// Scenario file (default: the embedded scenarios/default.toml, which fits a robot of
+    /// any structure: it starts at rest and drives toward the robot file's `set_point`).
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Robot file (default: the scenario's robot, else the embedded paper robot).
@@ -46,7 +50,8 @@ struct SimulateArgs {
     /// controller's robot).
     #[arg(long, value_name = "FILE")]
     plant: Option<PathBuf>,
-    /// Set point `Δx,Δy,δL,…` (m), replacing the scenario's reference.
+    /// Set point `Δx,Δy,δL,…` (m), replacing the scenario's reference and the robot
+    /// file's `set_point`.
     #[arg(long, allow_hyphen_values = true)]
     set_point: Option<String>,
     /// Simulated time (s).
@@ -160,7 +165,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
         Command::Plot(args) => softcbf::replot::plot(args, console),
         Command::Identify(args) => softcbf::identify::run(args, console),
-        Command::Verify(args) => softcbf::verify::cli::verify(args, console),
+        Command::Verify(args) => softcbf::verify::cli::verify_interruptible(args, console),
         Command::Simulate(args) => run_simulation(args, console),
     }
 }
@@ -183,8 +188,12 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     )?;
     let file = match &args.scenario {
         Some(path) => ScenarioFile::load(path).map_err(|e| e.to_string())?,
-        None => ScenarioFile::paper_sim(),
+        None => ScenarioFile::default_scenario(),
     };
+    // The scenario's own robot is read and checked also when --robot replaces it.
+    if args.robot.is_some() {
+        file.load_robot().map_err(|e| e.to_string())?;
+    }
     let robot = match &args.robot {
         Some(path) => load_robot(Some(path)),
         None => file
@@ -219,6 +228,27 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         .resolve_with(&model, &overrides)
         .map_err(|e| e.to_string())?;
     let filter = scenario.controller.filter;
+    // The guarantee is about starts inside the model's domain with every barrier and its
+    // first HOCBF level non-negative (docs/model.md §5): a start outside it is refused (no
+    // domain) or said (no guarantee).
+    if let Some(problem) =
+        domain::state_problem(&model.robot, &scenario.initial_q, &scenario.initial_qd)
+    {
+        return Err(format!(
+            "{}: the initial state is outside the model's domain: {problem}",
+            scenario.file
+        ));
+    }
+    if filter {
+        let starts = StartSet::new(&model, &scenario.controller)?;
+        if let Some(problem) = starts.problem(&model, &scenario.initial_q, &scenario.initial_qd) {
+            eprintln!(
+                "note: the initial state is outside the set the safety guarantee covers \
+                 ({problem}); the filter brings it back at the rate p1, and nothing is \
+                 guaranteed until it has"
+            );
+        }
+    }
     if !filter && args.compare {
         return Err(format!(
             "--compare: the scenario runs without the safety filter (`filter = false` in {}), \
@@ -259,33 +289,29 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
     console.say(&format!("wrote {}", names.join(", ")));
 
-    let mut code = exit::OK;
-    for run in std::iter::once(&main).chain(&comparison) {
-        let summary = &run.summary;
-        if let Some(why) = &summary.stopped {
-            eprintln!("error: the {} run stopped early: {why}", summary.controller);
-            code = exit::worst(code, exit::ERROR);
-        }
-        let counts = &summary.counts;
-        if counts.invalid_state + counts.failed > 0 {
-            eprintln!(
-                "error: the {} run had {} ticks with an invalid state and {} failed QPs \
-                 (the zero command was applied)",
-                summary.controller, counts.invalid_state, counts.failed
-            );
-            code = exit::worst(code, exit::UNSAFE);
-        }
+    // The exit status is the verdict on the run asked for (filtered, or with --no-filter
+    // plain PD+); a comparison beside it is reported, not judged: it is there to fail.
+    let verdict = judge(&main.summary.outcome(), &Limits::new(threshold));
+    console.say(&format!("verdict: {}", verdict.line()));
+    match &verdict {
+        Verdict::Safe => {}
+        Verdict::Unsafe(why) => eprintln!("error: unsafe run: {why}"),
+        Verdict::NotRun(why) | Verdict::Fault(why) => eprintln!("error: {why}"),
     }
-    // Only the filtered run promises to keep the barriers; plain PD+ is the comparison.
-    let lowest = &main.summary.min_barrier;
-    if filter && lowest.value < threshold {
+    if filter && !verdict.is_safe() && scenario.controller.safety != SafetyMode::Certified {
+        // Which mode would have held: the same run with the certified rows.
+        let mut certified = scenario.clone();
+        certified.controller.safety = SafetyMode::Certified;
+        let other = simulate(&model, &certified, true, &mut |_| {}).map_err(|e| e.to_string())?;
+        let held = judge(&other.summary.outcome(), &Limits::new(threshold));
         eprintln!(
-            "error: unsafe run: lowest barrier {:.3e} {} ({}, t = {:.3} s) is below the \
-             threshold {threshold:e} (--barrier-threshold, m or rad)",
-            lowest.value, lowest.unit, lowest.label, lowest.t
+            "note: the same run with the certified rows (--safety certified, docs/model.md §5) \
+             ends {}: lowest barrier {:.3e}",
+            if held.is_safe() { "safe" } else { "unsafe too" },
+            other.summary.min_barrier.value
         );
-        code = exit::worst(code, exit::UNSAFE);
     }
+    let mut code = verdict.status();
     if let Some(error) = console.error() {
         eprintln!("error: {error}");
         code = exit::worst(code, exit::ERROR);

@@ -100,19 +100,30 @@ pub fn one_line(summary: &RunSummary) -> String {
         }
         _ => String::new(),
     };
+    let b = &summary.min_barrier;
+    let valid = format!("{:.3e} {} ({}, t = {:.3} s)", b.value, b.unit, b.label, b.t);
+    // Rows with an invalid state have no barrier value: the lowest over the others alone
+    // would read as a margin the run did not keep.
+    let lowest = match summary.invalid_rows {
+        0 => valid,
+        n if n >= summary.rows => format!(
+            "none: all {n} recorded rows have an invalid state (outside the model's domain)"
+        ),
+        n => format!(
+            "none at {n} of {} recorded rows (an invalid state, outside the model's domain); \
+             {valid} over the others",
+            summary.rows
+        ),
+    };
     let mut line = format!(
         "{} on {} [{}]: {:.3} s simulated in {:.3} s ({:.0}× real time); lowest barrier\
-         {dense} {:.3e} {} ({}, t = {:.3} s); set-point error {:.4} m; max |τ| {:.3} N",
+         {dense} {lowest}; set-point error {:.4} m; max |τ| {:.3} N",
         summary.scenario,
         summary.robot,
         summary.controller,
         summary.duration,
         summary.wall_time,
         summary.real_time_factor,
-        summary.min_barrier.value,
-        summary.min_barrier.unit,
-        summary.min_barrier.label,
-        summary.min_barrier.t,
         summary.set_point_error,
         summary.max_abs_tau,
     );
@@ -124,6 +135,13 @@ pub fn one_line(summary: &RunSummary) -> String {
             "; {} QP solves ({} with active barriers, {} relaxed, {} failed)",
             counts.qp_solves, counts.active, counts.relaxed, counts.failed
         );
+        if counts.uncertified > 0 {
+            // The certified mode's ticks whose bound did not close: filtered, not proven.
+            line += &format!(
+                "; {} of {} ticks not proven over their hold (the prediction's rows alone)",
+                counts.uncertified, counts.ticks
+            );
+        }
     }
     if counts.invalid_state > 0 {
         line += &format!("; {} ticks with an invalid state", counts.invalid_state);
@@ -135,10 +153,11 @@ pub fn one_line(summary: &RunSummary) -> String {
 }
 
 /// Standard output for the command's lines, never a panic: each line is written and
-/// flushed at once; once the reader has gone (a closed pipe, `softcbf … | head`) lines are
-/// dropped quietly, and any other failure (a full disk, `> /dev/full`, a lost terminal) is
-/// kept for [`Console::error`], which decides the exit status. The work goes on either
-/// way: a hardware run still stops safely and writes its log.
+/// flushed at once. Once a write fails, because the reader has gone (a closed pipe,
+/// `softcbf … | head`) or for any other reason (a full disk, `> /dev/full`, a lost
+/// terminal), later lines are dropped and the failure is kept for [`Console::error`]: the
+/// output was not all written, which the exit status says. The work goes on either way: a
+/// hardware run still stops safely and writes its log.
 #[derive(Debug, Default)]
 pub struct Console {
     closed: bool,
@@ -160,13 +179,17 @@ impl Console {
         let written = writeln!(out, "{text}").and_then(|()| out.flush());
         if let Err(error) = written {
             self.closed = true;
-            if error.kind() != std::io::ErrorKind::BrokenPipe {
-                self.error = Some(format!("cannot write standard output: {error}"));
-            }
+            self.error = Some(if error.kind() == std::io::ErrorKind::BrokenPipe {
+                "cannot write standard output: its reader closed it (a pipe such as `| head`), \
+                 the lines after that were lost"
+                    .to_string()
+            } else {
+                format!("cannot write standard output: {error}")
+            });
         }
     }
 
-    /// The first failure to write, other than a reader that went away.
+    /// The first failure to write, a reader that went away included.
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
     }

@@ -8,7 +8,9 @@
 //! in a column below the lowest of them, so the labels collide with nothing. A robot with
 //! barriers beyond its plate corners gets one row of barrier panels per kind group
 //! ([`KindGroup`]: plate corners, elongation limits, bend limits, obstacles), each with
-//! its unit and zero line; the plate corners alone keep the one row of Fig. 4.
+//! its unit and zero line; the plate corners alone keep the one row of Fig. 4. A row whose
+//! barriers come near zero gets a zoomed row under it, in millimetres, where the last
+//! millimetres before the boundary and any dip past it show.
 //!
 //! Text is drawn with DejaVu Sans compiled into the binary (registered once with plotters'
 //! `ab_glyph` backend), so a figure comes out byte-identical on any machine: no system
@@ -31,6 +33,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 pub(crate) mod draw;
+pub mod invalid;
 pub mod robot_view;
 mod series;
 mod style;
@@ -46,8 +49,8 @@ use crate::record::Record;
 use series::Range;
 pub use series::{display_name, envelope, excursion, nice_ceil, settle_time, window};
 pub use style::{
-    DISTINCT_COORDINATES, LineStyle, PALETTE, SET_POINT_DASH, barrier_style, coordinate_style,
-    module_dash,
+    BARRIER_PALETTE, DISTINCT_COORDINATES, LineStyle, PALETTE, SET_POINT_DASH, barrier_style,
+    coordinate_style, module_dash,
 };
 
 /// Why figures could not be drawn.
@@ -135,6 +138,25 @@ pub const SPLIT_SHARE: f64 = 0.64;
 /// A barrier whose lowest value is at most this \[m\] (or 0.2 % of the barrier axis, if
 /// larger) counts as reaching zero and gets a label.
 pub const ACTIVE_TOLERANCE: f64 = 1e-4;
+/// A row of barriers gets a zoomed row under it when one of its barriers comes this close
+/// to zero \[m, or rad for a bend limit\], 5 mm, so that the last millimetres before the
+/// boundary, and any dip past it, show (on the full row's axis, tenths of a metre, they do
+/// not). The zoomed row reaches at least this far above zero.
+pub const ZOOM_HIGH: f64 = 5e-3;
+/// The zoomed row reaches below zero to the lowest barrier (5 % beyond it, rounded up to
+/// 1, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 × 10ᵏ), at least [`ZOOM_LOW_MIN`] and at most
+/// [`ZOOM_LOW_MAX`], and as far above zero (at least [`ZOOM_HIGH`]): the approach to the
+/// boundary and the dip past it on one scale. A barrier further below leaves the zoomed
+/// panel at its edge (the full row above shows it whole).
+pub const ZOOM_LOW_MIN: f64 = 1e-3;
+/// See [`ZOOM_LOW_MIN`].
+pub const ZOOM_LOW_MAX: f64 = 5e-2;
+/// Clear space between the lowest labelled barrier and the block of labels under it \[px\],
+/// so that the block never touches the lines that reach zero, nor the zero line.
+const LABEL_GAP: u32 = 12;
+/// Height of the two lines under a column's title that say its run has invalid states
+/// \[px\].
+const NOTE_HEIGHT: u32 = 36;
 
 /// Where the time axis of every panel is split into the transient and the rest.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -259,6 +281,9 @@ struct BarrierRow {
     active: Vec<Vec<Active>>,
     /// Layout of their labels.
     grid: LabelGrid,
+    /// Value range of the zoomed row near zero under this one, if one of its barriers
+    /// comes within [`ZOOM_HIGH`] of zero.
+    zoom: Option<std::ops::Range<f64>>,
 }
 
 impl BarrierRow {
@@ -277,6 +302,22 @@ impl BarrierRow {
         (caption, format!("b [{unit}]"))
     }
 
+    /// Caption and value-axis label of its zoomed row (values shown in mm or mrad).
+    fn zoom_text(&self) -> (String, String) {
+        let unit = match self.group.map_or("m", KindGroup::unit) {
+            "rad" => "mrad",
+            _ => "mm",
+        };
+        let what = match self.group {
+            Some(group) if !self.only => format!("{} ", group.title()),
+            _ => String::new(),
+        };
+        (
+            format!("the same {what}near b = 0, zoomed (in {unit})"),
+            format!("b [{unit}]"),
+        )
+    }
+
     /// Title of its legend.
     fn legend_title(&self) -> &'static str {
         match self.group {
@@ -284,6 +325,17 @@ impl BarrierRow {
             _ => "barriers",
         }
     }
+}
+
+/// What one row of panels shows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum RowKind {
+    /// Row `k` of q, τ, τ − τ_nom.
+    Coordinates(usize),
+    /// Barrier row `k`.
+    Barriers(usize),
+    /// The zoomed row near zero of barrier row `k`.
+    Zoom(usize),
 }
 
 /// What one figure shows: validated input, shared axis ranges, the time split and the
@@ -301,8 +353,13 @@ struct Figure<'a> {
     rows: [std::ops::Range<f64>; COORDINATE_ROWS],
     /// The rows of barrier panels, top to bottom.
     barrier_rows: Vec<BarrierRow>,
+    /// Every row of panels, top to bottom.
+    row_kinds: Vec<RowKind>,
     /// Names of the coordinates as shown (`Δx₁`).
     labels: Vec<String>,
+    /// Per column, its rows with an invalid state: the two lines its title says of them
+    /// and the time spans its panels shade.
+    invalid: Vec<invalid::InvalidRows>,
 }
 
 /// The values of one series of `record` within the window.
@@ -609,6 +666,16 @@ impl<'a> Figure<'a> {
                 for &j in &barriers {
                     range.cover([ranges[j].low, ranges[j].high]);
                 }
+                let row_lowest = barriers
+                    .iter()
+                    .map(|&j| ranges[j].low)
+                    .filter(|v| v.is_finite())
+                    .fold(f64::INFINITY, f64::min);
+                let zoom = (row_lowest <= ZOOM_HIGH).then(|| {
+                    let depth = nice_ceil((-1.05 * row_lowest).clamp(ZOOM_LOW_MIN, ZOOM_LOW_MAX));
+                    let depth = depth.min(ZOOM_LOW_MAX);
+                    -depth..depth.max(ZOOM_HIGH)
+                });
                 let range = range.padded();
                 let tolerance = ACTIVE_TOLERANCE.max(0.002 * (range.end - range.start));
                 let active: Vec<Vec<Active>> = lowest
@@ -650,8 +717,21 @@ impl<'a> Figure<'a> {
                     range: room_for_labels(range, &active, grid),
                     active,
                     grid,
+                    zoom,
                 }
             })
+            .collect::<Vec<BarrierRow>>();
+        let mut row_kinds: Vec<RowKind> = (0..COORDINATE_ROWS).map(RowKind::Coordinates).collect();
+        for (k, row) in barrier_rows.iter().enumerate() {
+            row_kinds.push(RowKind::Barriers(k));
+            if row.zoom.is_some() {
+                row_kinds.push(RowKind::Zoom(k));
+            }
+        }
+        let robot = options.model.map(|model| &model.robot);
+        let invalid = panels
+            .iter()
+            .map(|(_, record)| invalid::InvalidRows::of(record, robot))
             .collect();
         let barrier_styles = (0..m)
             .map(|j| barrier_style(grouping.module[j], grouping.key[j]))
@@ -664,6 +744,8 @@ impl<'a> Figure<'a> {
             split,
             rows: rows.map(Range::padded),
             barrier_rows,
+            row_kinds,
+            invalid,
             labels: first
                 .columns()
                 .coordinate_names()
@@ -673,15 +755,25 @@ impl<'a> Figure<'a> {
         })
     }
 
-    /// Rows of panels: q, τ, τ − τ_nom and the barrier rows.
+    /// Rows of panels: q, τ, τ − τ_nom, the barrier rows and their zoomed rows.
     fn row_count(&self) -> usize {
-        COORDINATE_ROWS + self.barrier_rows.len()
+        self.row_kinds.len()
+    }
+
+    /// Height of the band of column titles \[px\]: with a line for the notes of invalid
+    /// states if a column has one.
+    fn title_height(&self) -> u32 {
+        if self.invalid.iter().any(|rows| rows.count > 0) {
+            TITLE_HEIGHT + NOTE_HEIGHT
+        } else {
+            TITLE_HEIGHT
+        }
     }
 
     fn size(&self) -> (u32, u32) {
         (
             COLUMN_WIDTH * self.panels.len() as u32 + LEGEND_WIDTH,
-            TITLE_HEIGHT + ROW_HEIGHT * self.row_count() as u32,
+            self.title_height() + ROW_HEIGHT * self.row_count() as u32,
         )
     }
 }
@@ -704,8 +796,8 @@ fn room_for_labels(
         let Some(lowest) = panel.iter().map(|a| a.low).reduce(f64::min) else {
             continue;
         };
-        // Fraction of the plot height the labels need below `lowest`.
-        let block = LABEL_LINE * grid.rows(panel.len()) as u32 + LABEL_LINE / 2;
+        // Fraction of the plot height the labels need below `lowest`, with the gap above.
+        let block = LABEL_GAP + LABEL_LINE * grid.rows(panel.len()) as u32 + LABEL_LINE / 2;
         let need = block as f64 / plot_height() as f64;
         if need < 0.8 && lowest.is_finite() {
             // (lowest − low') / (high − low') = need.
@@ -813,9 +905,15 @@ pub fn write_figures(
 /// barrier panels per [`KindGroup`] present instead of (d), in the order of
 /// [`KIND_GROUPS`], each with its unit and zero line. Coordinates are told apart by
 /// [`coordinate_style`]; barriers by colour within a module and dash per module
-/// ([`barrier_style`]). The figure is `660·columns + 170` × `1240 + 299·(groups − 1)`
-/// pixels ([`FIGURE_HEIGHT`], [`ROW_HEIGHT`]); the value range of each row is shared by
-/// the columns so they compare at a glance, and so is the time axis, split per `options`.
+/// ([`barrier_style`], colours none of the coordinates have). Under a row of barriers
+/// one of which comes within [`ZOOM_HIGH`] of zero, a zoomed row shows them near zero in
+/// millimetres (milliradians for a bend limit; [`ZOOM_LOW_MIN`]). Every line is cut at the
+/// edges of its panel; the times of rows whose state the model cannot use are shaded and
+/// the column's title says so ([`invalid`]). The figure is `660·columns + 170` ×
+/// `1240 + 299·(rows − 4)` pixels ([`FIGURE_HEIGHT`], [`ROW_HEIGHT`]; rows: q, τ,
+/// τ − τ_nom, the barrier rows and their zoomed rows), 36 more with invalid states; the
+/// value range of each row is shared by the columns so they compare at a glance, and so
+/// is the time axis, split per `options`.
 pub fn draw_figures(
     out_dir: &Path,
     stem: &str,

@@ -27,6 +27,9 @@ use crate::settings::{GainOptions, Gains, ScenarioGains, Source, Sourced, first,
 
 /// Text of `scenarios/paper-sim.toml`, compiled in as the default scenario.
 pub const PAPER_SIM_SCENARIO: &str = include_str!("../../scenarios/paper-sim.toml");
+/// `scenarios/default.toml`: what a bare `softcbf simulate` runs (the paper's scenario with
+/// the certified rows).
+pub const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/default.toml");
 
 /// A scenario ready to run against a model.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,6 +139,10 @@ pub enum ScenarioError {
     /// A command-line option, named in the message.
     #[error("{0}")]
     Option(String),
+    /// Something the run needs that neither the command line, the scenario nor the robot
+    /// file gives; the message says what, and every way to give it.
+    #[error("{0}")]
+    Missing(String),
 }
 
 /// A parsed scenario file whose sizes are not yet checked against a robot.
@@ -274,7 +281,17 @@ impl ScenarioFile {
         ScenarioFile::parse(&text, path)
     }
 
-    /// The embedded paper scenario.
+    /// The embedded default scenario (`scenarios/default.toml`): the paper's scenario with
+    /// the certified rows.
+    pub fn default_scenario() -> ScenarioFile {
+        ScenarioFile::parse(
+            DEFAULT_SCENARIO,
+            Path::new("<embedded scenarios/default.toml>"),
+        )
+        .expect("the embedded scenarios/default.toml is valid (tested)")
+    }
+
+    /// The embedded paper scenario, with the paper's rows.
     pub fn paper_sim() -> ScenarioFile {
         ScenarioFile::parse(
             PAPER_SIM_SCENARIO,
@@ -381,6 +398,12 @@ impl ScenarioFile {
                     field: String::new(),
                     message,
                 },
+                ScenarioError::Missing(message) => FileError::Invalid {
+                    path: self.path.clone(),
+                    line: 0,
+                    field: "reference".to_string(),
+                    message,
+                },
             })
     }
 
@@ -441,7 +464,23 @@ impl ScenarioFile {
             None,
         );
         self.check_record_period(&c, &record_period, &control_period, &duration)?;
-        let plant = self.plant(&c, model, overrides)?;
+        let plant = self.plant(&c, &model.robot, overrides)?;
+        // Every value of the file is checked, also one the command line replaces (the file
+        // may be run without the option another time), against the robot the file names
+        // (the run's may be another one, given on the command line).
+        let replaced = overrides.set_point.is_some() && self.raw.reference.is_some()
+            || overrides.plant.is_some() && self.plant_path().is_some();
+        let file_robot = match replaced {
+            true => Some(
+                self.load_robot()
+                    .and_then(|robot| robot.map_or_else(|| crate::cli::load_robot(None), Ok))?,
+            ),
+            false => None,
+        };
+        let own = file_robot.as_ref().unwrap_or(&model.robot);
+        if overrides.plant.is_some() && self.plant_path().is_some() {
+            self.plant(&c, own, &Overrides::default())?;
+        }
         let plant = self.plant_factors(&c, model, plant)?;
         let sensor_noise = self.sensor_noise(&c)?;
 
@@ -449,11 +488,27 @@ impl ScenarioFile {
         let initial_q = state(&c, raw.initial.q.as_ref(), "initial.q", robot, Coordinates)?;
         let initial_qd = state(&c, raw.initial.qd.as_ref(), "initial.qd", robot, Velocities)?;
 
-        let reference = match &overrides.set_point {
-            Some(point) => {
+        let reference = match (&overrides.set_point, &raw.reference, &robot.set_point) {
+            (Some(point), file_reference, _) => {
+                if let Some(table) = file_reference {
+                    // At the file's own period (the spacing of its waypoints).
+                    let file_period = number(
+                        &raw.control_period,
+                        "control_period",
+                        &limits::CONTROL_PERIOD_S,
+                    )?
+                    .unwrap_or(DEFAULT_CONTROL_PERIOD);
+                    self.reference(&c, table, own, file_period)?;
+                }
                 Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::CommandLine)
             }
-            None => Sourced::new(self.reference(&c, robot, period)?, Source::Scenario),
+            (None, Some(table), _) => {
+                Sourced::new(self.reference(&c, table, robot, period)?, Source::Scenario)
+            }
+            (None, None, Some(point)) => {
+                Sourced::new(ReferenceSpec::SetPoint(point.clone()), Source::RobotFile)
+            }
+            (None, None, None) => return Err(ScenarioError::Missing(self.no_set_point(robot))),
         };
 
         let nq = model.nq();
@@ -620,7 +675,7 @@ impl ScenarioFile {
     fn plant(
         &self,
         c: &Checker<'_>,
-        model: &Model,
+        controller: &Robot,
         overrides: &Overrides,
     ) -> Result<Sourced<Option<Robot>>, ScenarioError> {
         let (path, source) = match (&overrides.plant, self.plant_path()) {
@@ -653,13 +708,13 @@ impl ScenarioFile {
             }
             Err(error) => return Err(error.into()),
         };
-        if let Some(difference) = structure_difference(&model.robot, &robot) {
+        if let Some(difference) = structure_difference(controller, &robot) {
             return Err(refuse(format!(
                 "the plant robot {} differs in structure from the controller's robot {}: \
                  {difference}; a plant may differ only in its numbers (stiffness, damping, \
                  masses, lengths), so that both use one generated model",
                 resolved.display(),
-                crate::settings::file_name(&model.robot.source)
+                crate::settings::file_name(&controller.source)
             )));
         }
         Ok(Sourced::new(Some(robot), source))
@@ -804,19 +859,38 @@ impl ScenarioFile {
         Err(c.invalid(&span, "duration", problem).into())
     }
 
+    /// What a run lacks when neither the command line, the scenario nor the robot file
+    /// gives a set point, and every way to give one.
+    fn no_set_point(&self, robot: &Robot) -> String {
+        let nq = 3 * robot.modules.len();
+        let names: Vec<String> = (1..=robot.modules.len())
+            .flat_map(|k| [format!("Δx{k}"), format!("Δy{k}"), format!("δL{k}")])
+            .collect();
+        let shown = if names.len() > 6 {
+            format!("{}, …, {}", names[..3].join(","), names[nq - 1])
+        } else {
+            names.join(",")
+        };
+        format!(
+            "no set point for the robot {} ({}): its file has no `set_point` and the scenario \
+             {} no [reference]. Give one of: `--set-point {shown}` ({nq} numbers [m], 3 per \
+             module; `set_point=` in Python), a line `set_point = [...]` with {nq} numbers in \
+             the robot file (robots/README.md), or a scenario file with a [reference] table \
+             (`--scenario FILE`, scenarios/README.md)",
+            robot.name,
+            crate::settings::file_name(&robot.source),
+            self.path.display(),
+        )
+    }
+
+    /// The file's `[reference]` table, checked against `robot`.
     fn reference(
         &self,
         c: &Checker<'_>,
+        reference: &Spanned<RawReference>,
         robot: &Robot,
         control_period: f64,
     ) -> Result<ReferenceSpec, FileError> {
-        let Some(reference) = &self.raw.reference else {
-            return Err(c.invalid(
-                &(0..0),
-                "reference",
-                "missing: add a [reference] table with `set_point = [...]` or `waypoints`".into(),
-            ));
-        };
         let span = reference.span();
         match (
             &reference.get_ref().set_point,
@@ -1031,6 +1105,19 @@ mod tests {
                 assert!(message.contains(fragment), "`{message}` lacks `{fragment}`");
             }
         }
+    }
+
+    #[test]
+    fn the_default_scenario_is_the_paper_scenario_with_the_certified_rows() {
+        let default = ScenarioFile::default_scenario().resolve(&model()).unwrap();
+        let paper = ScenarioFile::paper_sim().resolve(&model()).unwrap();
+        assert_eq!(default.controller.safety, SafetyMode::Certified);
+        assert_eq!(paper.controller.safety, SafetyMode::Paper);
+        assert_eq!(
+            (default.duration, default.control_period, &default.reference),
+            (paper.duration, paper.control_period, &paper.reference)
+        );
+        assert!(default.compare && paper.compare);
     }
 
     #[test]

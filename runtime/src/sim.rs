@@ -35,6 +35,7 @@ use crate::scenario::{Scenario, between_ticks, structure_difference};
 use crate::settings::{
     Described, IntegratorReport, SettingsReport, Sourced, file_name, software, vector_text,
 };
+use crate::verdict::{Lowest, Outcome};
 
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
@@ -285,6 +286,9 @@ pub struct TickCounts {
     /// Ticks whose command could not be certified over its hold (the certified mode's
     /// [`TickStatus::Uncertified`]).
     pub uncertified: usize,
+    /// Ticks run without the safety filter (plain PD+; not in `runs.csv`, whose runs are
+    /// all filtered).
+    pub unfiltered: usize,
 }
 
 /// What `summary.json` holds for one run.
@@ -305,8 +309,13 @@ pub struct RunSummary {
     /// Whether rows were recorded between ticks (a record period shorter than the control
     /// period): then the lowest barriers below are over those rows too.
     pub dense: bool,
-    /// Lowest barrier value in a recorded row, and which barrier.
+    /// Lowest barrier value in a recorded row whose barriers are all numbers, and which
+    /// barrier (rows with an invalid state are counted in `invalid_rows` instead).
     pub min_barrier: BarrierMinimum,
+    /// Recorded rows whose barriers were not all numbers (a state outside the model's
+    /// domain), and the rows recorded.
+    pub invalid_rows: usize,
+    pub rows: usize,
     /// Lowest barrier value in a recorded row of each kind group the model has.
     pub lowest_by_kind: LowestByKind,
     /// Final `q` \[m\].
@@ -336,6 +345,32 @@ pub struct RunSummary {
     pub stopped: Option<String>,
     /// Every setting the run used, with where it came from.
     pub settings: SettingsReport,
+}
+
+impl RunSummary {
+    /// What the run did, for its verdict ([`crate::verdict::judge`]).
+    pub fn outcome(&self) -> Outcome<'_> {
+        let b = &self.min_barrier;
+        let c = &self.counts;
+        let computed = c.ticks.saturating_sub(c.invalid_state);
+        Outcome {
+            ticks: c.ticks as u64,
+            lowest: Lowest {
+                value: b.value,
+                label: b.label,
+                unit: b.unit,
+                t: b.t,
+            },
+            invalid_rows: self.invalid_rows as u64,
+            rows: self.rows as u64,
+            invalid_ticks: c.invalid_state as u64,
+            failed_ticks: c.failed as u64,
+            unfiltered_ticks: c.unfiltered.min(computed) as u64,
+            relaxed_ticks: c.relaxed as u64,
+            stopped: self.stopped.as_deref(),
+            overruns: None,
+        }
+    }
 }
 
 /// Every setting a run of `scenario` on `model` uses, with the filter on or off, and where
@@ -403,14 +438,21 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
 }
 
 /// Keeps barrier `values` (one per row of `table`) at time `t` in `minimum` and `by_kind`
-/// if they are lower.
+/// if they are lower; a row with a value that is not a number counts in `invalid_rows` and
+/// is kept out of both, and `rows` counts every row.
 fn observe(
     minimum: &mut BarrierMinimum,
     by_kind: &mut LowestByKind,
+    (invalid_rows, rows): (&mut usize, &mut usize),
     table: &[BarrierInfo],
     values: &[f64],
     t: f64,
 ) {
+    *rows += 1;
+    if values.iter().any(|b| b.is_nan()) {
+        *invalid_rows += 1;
+        return;
+    }
     for (j, &b) in values.iter().enumerate() {
         if b < minimum.value {
             *minimum = BarrierMinimum::of(table, j, b, t);
@@ -485,6 +527,7 @@ pub fn simulate(
     let mut relaxed_now = vec![false; nb];
     let mut minimum = BarrierMinimum::none();
     let mut lowest_by_kind = LowestByKind::new(table);
+    let (mut invalid_rows, mut rows_seen) = (0usize, 0usize);
     let mut max_abs_tau = 0.0_f64;
     let (mut control_time, mut integration_time) = (Duration::ZERO, Duration::ZERO);
     let mut stopped = None;
@@ -537,7 +580,7 @@ pub fn simulate(
 
         counts.ticks += 1;
         match status {
-            TickStatus::Unfiltered => {}
+            TickStatus::Unfiltered => counts.unfiltered += 1,
             TickStatus::Filtered | TickStatus::Relaxed | TickStatus::QpFailed => {
                 counts.qp_solves += 1;
                 let report = controller.qp_report();
@@ -569,7 +612,14 @@ pub fn simulate(
                 counts.uncertified += 1;
             }
         }
-        observe(&mut minimum, &mut lowest_by_kind, table, barriers, t);
+        observe(
+            &mut minimum,
+            &mut lowest_by_kind,
+            (&mut invalid_rows, &mut rows_seen),
+            table,
+            barriers,
+            t,
+        );
         let applied = if k < ticks { controller.tau() } else { &[][..] };
         max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
         record.push_row(&Row {
@@ -622,6 +672,7 @@ pub fn simulate(
             observe(
                 &mut minimum,
                 &mut lowest_by_kind,
+                (&mut invalid_rows, &mut rows_seen),
                 table,
                 &between_barriers,
                 at,
@@ -676,6 +727,8 @@ pub fn simulate(
         record_period,
         dense: between > 0,
         min_barrier: minimum,
+        invalid_rows,
+        rows: rows_seen,
         lowest_by_kind,
         final_q,
         set_point,

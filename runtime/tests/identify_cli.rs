@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use common::{BIN, Emulator, robot, start_run, temp_dir, wait_for};
+use common::{BIN, Emulator, LOAD_FAULTS, finish_run_within, robot, start_run, temp_dir};
 use softcbf::hardware::description;
 use softcbf_description::robot::Robot;
 
@@ -75,13 +75,28 @@ fn the_walk_through_finds_the_true_robot() {
             seed,
         ]);
         let out = dir.join(kind);
-        let mut run = start_run(
+        let run = start_run(
             &emulator.port,
             &out,
             &["--experiment", kind, "--rate", "100", "--quiet"],
         );
-        let status = wait_for(&mut run.child, Duration::from_secs(240), kind);
-        assert_eq!(status.code(), Some(0), "the {kind} experiment ends safe");
+        let (code, stdout, stderr) = finish_run_within(run, Duration::from_secs(240), kind);
+        // A 100 Hz loop needs the bus and a core: a machine loaded by other work may not
+        // give them, which the run says before torque on (or by stopping on --min-rate).
+        // That is not this test's question: it says so and skips.
+        let too_slow = (code == 1 && stderr.contains("the bus cannot hold it"))
+            || (code == 4 && LOAD_FAULTS.iter().any(|w| stdout.contains(w)));
+        if too_slow {
+            println!(
+                "skipped: this machine (under its load) cannot hold the {kind} experiment's \
+                 100 Hz:\n{stdout}\n{stderr}"
+            );
+            return;
+        }
+        assert_eq!(
+            code, 0,
+            "the {kind} experiment ends safe:\n{stdout}\n{stderr}"
+        );
         logs.push(out);
     }
     let identified = dir.join("identified.toml");

@@ -62,7 +62,10 @@ fn corner_scenario(dir: &Path) -> PathBuf {
         "corner.toml",
         "verify-paper.toml",
         &[
-            ("safety = [\"paper\", \"sampled\"]", "safety = [\"paper\"]"),
+            (
+                "safety = [\"paper\", \"certified\"]",
+                "safety = [\"paper\"]",
+            ),
             (
                 "control_periods = [0.001, 0.0303]",
                 "control_periods = [0.001]",

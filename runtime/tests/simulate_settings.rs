@@ -30,16 +30,30 @@ fn simulate(args: &[&str]) -> Output {
         .expect("the softcbf binary runs")
 }
 
+/// Asserts that `output` is of a run that went as asked: safe (0), or with `--no-filter`
+/// plain PD+, which nothing keeps safe (3, saying so).
+fn assert_ran(output: &Output, args: &[&str]) {
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if args.contains(&"--no-filter") {
+        assert_eq!(output.status.code(), Some(3), "simulate {args:?}: {stderr}");
+        assert!(
+            stderr.contains("ticks ran without the safety filter"),
+            "simulate {args:?}: {stderr}"
+        );
+    } else {
+        assert!(
+            output.status.success(),
+            "simulate {args:?} failed: {stderr}"
+        );
+    }
+}
+
 /// Runs `simulate` with `args` into `out` and returns its summary.json.
 fn summary(out: &Path, args: &[&str]) -> Value {
     let mut all = vec!["--out", out.to_str().unwrap()];
     all.extend_from_slice(args);
     let output = simulate(&all);
-    assert!(
-        output.status.success(),
-        "simulate {args:?} failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert_ran(&output, args);
     let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
     serde_json::from_str(&text).unwrap()
 }
@@ -246,7 +260,7 @@ fn another_robot_is_named_in_the_one_line_summary() {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(output.status.success(), "{output:?}");
+    assert_ran(&output, &["--no-filter"]);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
         stdout.contains("paper-sim on hardware-example [pd]"),
@@ -356,7 +370,7 @@ fn record_period_and_plant_from_the_command_line() {
         "0.0005",
         "--no-filter",
     ]);
-    assert!(output.status.success(), "{output:?}");
+    assert_ran(&output, &["--no-filter"]);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
         stdout.contains("; recorded every 500 µs (command line);"),
@@ -422,6 +436,148 @@ fn record_period_and_plant_from_the_command_line() {
         stderr.contains("error: --plant: the plant robot ")
             && stderr.contains("it has 3 modules, the controller's robot 2"),
         "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A value in the scenario file is checked also when an option replaces it: the file may
+/// be run without the option another time, and a bad value should not wait for it.
+#[test]
+fn file_values_are_checked_when_the_command_line_replaces_them() {
+    let dir = temp_dir("overridden");
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    let paper = repo("robots/paper-sim.toml");
+    let paper = paper.to_str().unwrap();
+    for (text, option, field) in [
+        (
+            "duration = 0.05\n[reference]\nset_point = [0, 0, 0]\n",
+            vec!["--set-point", "0,0,0,0,0,0"],
+            "3: field `reference.set_point`",
+        ),
+        (
+            "duration = 0.05\nrobot = \"nope.toml\"\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+            vec!["--robot", paper],
+            "2: field `robot`",
+        ),
+        (
+            "duration = 0.05\nplant = \"nope.toml\"\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+            vec!["--plant", paper],
+            "2: field `plant`",
+        ),
+        (
+            "duration = -1.0\n[reference]\nset_point = [0, 0, 0, 0, 0, 0]\n",
+            vec!["--duration", "0.05"],
+            "1: field `duration`",
+        ),
+    ] {
+        let file = dir.join("scenario.toml");
+        std::fs::write(&file, text).unwrap();
+        let mut args = vec!["--scenario", file.to_str().unwrap(), "--out", out];
+        args.extend(option.iter().copied());
+        let stderr = refused(&args, 1);
+        assert!(
+            stderr.contains(&format!("{}:{field}", file.display())),
+            "{option:?}: {stderr}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The embedded scenario fits a robot of any structure: it starts the robot at rest and
+/// takes the set point from the command line, else from the robot file's `set_point`; with
+/// neither, the message says what is missing and every way to give it.
+#[test]
+fn a_robot_of_any_structure_runs_without_a_scenario_file() {
+    let dir = temp_dir("any-structure");
+    // Three modules with square plates: 9 coordinates, a set point in its robot file.
+    let three = repo("robots/three-square.toml");
+    let run = summary(
+        &dir.join("three"),
+        &["--robot", three.to_str().unwrap(), "--duration", "0.05"],
+    );
+    assert_eq!(run["robot"], "three-square");
+    assert_eq!(
+        setting(&run, "reference").1,
+        "robot_file",
+        "{}",
+        run["settings"]
+    );
+    assert_eq!(
+        run["set_point"],
+        serde_json::json!([0.08, 0.0, -0.03, 0.0, 0.07, -0.02, -0.07, 0.0, -0.03])
+    );
+    let rows = std::fs::read_to_string(dir.join("three/trajectory.csv")).unwrap();
+    let first: Vec<f64> = rows
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    // t, then q (9) and q̇ (9): at rest, straight.
+    assert_eq!(first[..19], [0.0; 19]);
+
+    // Four paper modules and no set point anywhere: refused, naming the ways to give one.
+    let four = dir.join("four modules.toml");
+    std::fs::write(&four, "name = \"four\"\nmodules = 4\n").unwrap();
+    let four = four.to_str().unwrap();
+    let message = refused(
+        &["--robot", four, "--out", dir.join("x").to_str().unwrap()],
+        1,
+    );
+    for fragment in [
+        "no set point for the robot four",
+        "four modules.toml",
+        "`--set-point Δx1,Δy1,δL1, …, δL4` (12 numbers [m], 3 per module",
+        "`set_point = [...]` with 12 numbers in the robot file (robots/README.md)",
+        "[reference] table",
+    ] {
+        assert!(
+            message.contains(fragment),
+            "`{fragment}` missing from: {message}"
+        );
+    }
+    assert!(!message.contains("initial.q"), "{message}");
+    // The command line gives it.
+    let set_point = "0.02,0,-0.01,0,0.02,-0.01,-0.02,0,-0.01,0,-0.02,-0.01";
+    let run = summary(
+        &dir.join("four"),
+        &[
+            "--robot",
+            four,
+            "--set-point",
+            set_point,
+            "--duration",
+            "0.05",
+        ],
+    );
+    assert_eq!(setting(&run, "reference").1, "command_line");
+    assert_eq!(run["set_point"].as_array().unwrap().len(), 12);
+    // And so does the robot file; a wrong length there is an error at its line.
+    let with_point = dir.join("four-with-point.toml");
+    std::fs::write(
+        &with_point,
+        format!("modules = 4\nset_point = [{set_point}]\n"),
+    )
+    .unwrap();
+    let run = summary(
+        &dir.join("four-file"),
+        &[
+            "--robot",
+            with_point.to_str().unwrap(),
+            "--duration",
+            "0.05",
+        ],
+    );
+    assert_eq!(setting(&run, "reference").1, "robot_file");
+    std::fs::write(&with_point, "modules = 4\nset_point = [0, 0, 0]\n").unwrap();
+    let message = refused(&["--robot", with_point.to_str().unwrap()], 1);
+    assert!(
+        message.contains(
+            "four-with-point.toml:2: field `set_point`: has 3 entries, the robot has 12 coordinates"
+        ),
+        "{message}"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -12,7 +12,7 @@ use std::path::Path;
 use criterion::{Criterion, criterion_group, criterion_main};
 use rand::RngExt;
 use softcbf::model::Model;
-use softcbf::scenario::ScenarioFile;
+use softcbf::scenario::{Overrides, ScenarioFile};
 use softcbf::sim::simulate;
 use softcbf_description::robot::Robot;
 use softcbf_generated::interpreted;
@@ -103,8 +103,13 @@ fn bench_closed_loop(c: &mut Criterion) {
     let mut group = c.benchmark_group("paper_closed_loop_1s");
     group.sample_size(10);
     let (compiled, interpreted) = models(2);
+    // The robot file of `models` gives no set point: the paper's, as on the command line.
+    let overrides = Overrides {
+        set_point: Some(vec![0.08, 0.0, -0.05, 0.0, -0.06, -0.07]),
+        ..Overrides::default()
+    };
     let mut scenario = ScenarioFile::paper_sim()
-        .resolve(&compiled)
+        .resolve_with(&compiled, &overrides)
         .expect("paper scenario");
     scenario.duration = 1.0;
     for (label, model) in [("compiled", &compiled), ("interpreted", &interpreted)] {

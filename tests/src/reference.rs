@@ -574,6 +574,7 @@ pub fn paper_robot(modules: Vec<Module>) -> Robot {
         obstacles: Vec::new(),
         uncertainty: Default::default(),
         modules,
+        set_point: None,
         hardware: None,
     }
 }

@@ -228,23 +228,27 @@ fn a_closed_loop_run_draws_a_row_of_panels_per_kind_group() {
             "robot.gif"
         ]
     );
-    // Four kind groups: three rows of barrier panels more than the paper's figure.
+    // Four kind groups: three rows of barrier panels more than the paper's figure, and
+    // under each, since each comes near zero, its zoomed row.
     let (width, height, _) = decode_png(&files[0]);
     assert_eq!(
         (width, height),
         (
             2 * COLUMN_WIDTH + LEGEND_WIDTH,
-            FIGURE_HEIGHT + 3 * ROW_HEIGHT
+            FIGURE_HEIGHT + 7 * ROW_HEIGHT
         )
     );
     let svg = std::fs::read_to_string(&files[1]).unwrap();
     for text in [
         "(d) barrier values b: plate corners",
-        "(e) barrier values b: elongation limits",
-        "(f) barrier values b: bend limits",
-        "(g) barrier values b: obstacles",
-        "(n) barrier values b: obstacles",
+        "(e) the same plate corners near b = 0, zoomed (in mm)",
+        "(f) barrier values b: elongation limits",
+        "(h) barrier values b: bend limits",
+        "(i) the same bend limits near b = 0, zoomed (in mrad)",
+        "(j) barrier values b: obstacles",
+        "(u) barrier values b: obstacles",
         "b [rad]",
+        "b [mrad]",
         "elongation max",
         "obstacle 2 arc 1",
     ] {

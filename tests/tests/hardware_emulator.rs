@@ -53,7 +53,10 @@ fn with_logged_emulator(
         .timeout(Duration::from_millis(1))
         .open_native()
         .unwrap();
-    let mut bus = Bus::new(port, Duration::from_millis(200));
+    // Generous: a machine loaded by other work can starve the emulator's thread for
+    // hundreds of milliseconds; the one timeout expected (a ping of an absent servo) waits
+    // it out once.
+    let mut bus = Bus::new(port, Duration::from_secs(1));
     body(&mut bus);
     stop.store(true, Ordering::Relaxed);
     server.join().unwrap().unwrap();

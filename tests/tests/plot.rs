@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 use rand::RngExt;
 use softcbf::plot::{
     COLUMN_WIDTH, DISTINCT_COORDINATES, FIGURE_HEIGHT, FigureOptions, LEGEND_WIDTH, PlotError,
-    Split, TimeAxis, barrier_style, coordinate_style, display_name, draw_figures, envelope,
-    modules_from_labels, nice_ceil, settle_time, time_axis, window, write_figures,
+    ROW_HEIGHT, Split, TimeAxis, ZOOM_HIGH, barrier_style, coordinate_style, display_name,
+    draw_figures, envelope, modules_from_labels, nice_ceil, settle_time, time_axis, window,
+    write_figures,
 };
 use softcbf::record::{Columns, Record, Row};
 
@@ -323,11 +324,12 @@ fn figures_are_drawn_with_both_columns() {
     );
 
     let (width, height, pixels) = decode_png(&files[0]);
+    // Barriers reach zero: a zoomed row near zero under the barrier row.
     assert_eq!(
         (width, height),
-        (2 * COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT)
+        (2 * COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT + ROW_HEIGHT)
     );
-    assert_eq!((width, height), (1490, 1240));
+    assert_eq!((width, height), (1490, 1539));
     // The lines are there: many pixels in the first palette colour (Δx₁, corner 1) and
     // the background is white.
     let blue = pixels.iter().filter(|p| **p == [0, 114, 178, 255]).count();
@@ -340,13 +342,14 @@ fn figures_are_drawn_with_both_columns() {
 
     let svg = std::fs::read_to_string(&files[1]).unwrap();
     assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
-    assert!(svg.contains("width=\"1490\"") && svg.contains("height=\"1240\""));
+    assert!(svg.contains("width=\"1490\"") && svg.contains("height=\"1539\""));
     for text in [
         "safety filter (HOCBF-QP)",
         "PD+ only",
         "(a) generalized coordinates q",
         "(c) filter action τ − τ_nom",
-        "(h) barrier values b",
+        "(e) the same near b = 0, zoomed (in mm)",
+        "(i) barrier values b",
         "t [s]",
         "τ − τ_nom [N]",
         "Δx₁",
@@ -417,7 +420,7 @@ fn one_column_and_bad_input() {
     let (width, height, _) = decode_png(&files[0]);
     assert_eq!(
         (width, height),
-        (COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT)
+        (COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT + ROW_HEIGHT)
     );
 
     let empty = Record::with_capacity(6, 12, &[], 0).unwrap();
@@ -619,9 +622,15 @@ fn edge_cases_are_drawn() {
         )
         .unwrap_or_else(|e| panic!("{name}: {e}"));
         let (width, height, _) = decode_png(&files[0]);
+        // A zoomed row near zero when a barrier comes within ZOOM_HIGH of it.
+        let lowest = (0..record.columns().m())
+            .flat_map(|j| record.b(j))
+            .filter(|b| b.is_finite())
+            .fold(f64::INFINITY, f64::min);
+        let zoom = if lowest <= ZOOM_HIGH { ROW_HEIGHT } else { 0 };
         assert_eq!(
             (width, height),
-            (COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT),
+            (COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT + zoom),
             "{name}"
         );
     }
@@ -676,7 +685,7 @@ fn a_hardware_log_with_gaps_is_drawn() {
     let (width, height, _) = decode_png(&files[0]);
     assert_eq!(
         (width, height),
-        (COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT)
+        (COLUMN_WIDTH + LEGEND_WIDTH, FIGURE_HEIGHT + ROW_HEIGHT)
     );
     assert!(
         std::fs::read_to_string(&files[1])

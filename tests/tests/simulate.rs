@@ -8,6 +8,7 @@ use softcbf::control::SafetyMode;
 use softcbf::model::Model;
 use softcbf::reference::ReferenceSpec;
 use softcbf::scenario::{Scenario, ScenarioFile};
+use softcbf::settings::Source;
 use softcbf::sim::{Run, simulate};
 
 fn paper() -> (Model, Scenario) {
@@ -182,10 +183,6 @@ fn malformed_scenarios_name_file_line_and_field() {
             "scenarios/bad.toml:1:1: field `gain`: unknown field `gain`, expected one of `name`",
         ),
         (
-            "duration = 1.0\n".to_string(),
-            "field `reference`: missing",
-        ),
-        (
             format!("{reference}[gains]\nkp = [1.0, 2.0]\n"),
             "scenarios/bad.toml:4: field `gains.kp`: has 2 entries",
         ),
@@ -214,6 +211,16 @@ fn malformed_scenarios_name_file_line_and_field() {
             "for\n{text}\nexpected `{expected}` in\n{message}"
         );
     }
+    // No [reference]: the robot file's set point (the paper robot's gives the paper's).
+    let model = Model::new(load_robot(None).unwrap()).unwrap();
+    let scenario = ScenarioFile::parse("duration = 1.0\n", Path::new("scenarios/x.toml"))
+        .and_then(|file| file.resolve(&model))
+        .unwrap();
+    assert_eq!(
+        scenario.reference,
+        ReferenceSpec::SetPoint(vec![0.08, 0.0, -0.05, 0.0, -0.06, -0.07])
+    );
+    assert_eq!(scenario.sources.reference, Source::RobotFile);
     let missing = ScenarioFile::load(Path::new("/nonexistent/scenario.toml")).unwrap_err();
     assert!(
         missing

@@ -64,6 +64,10 @@ pub struct Robot {
     pub obstacles: Vec<Obstacle>,
     /// How far the numbers may be off (`[uncertainty]`; none declared by default).
     pub uncertainty: Uncertainty,
+    /// The robot's own set point `q̄` \[m\] (`set_point`, `3·modules` entries in the state
+    /// domain; `None`: not given): what `softcbf simulate` drives it toward when neither
+    /// the command line nor the scenario gives a reference.
+    pub set_point: Option<Vec<f64>>,
     /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
     /// reads and checks it (`softcbf::hardware::description`).
     pub hardware: Option<HardwareTable>,
@@ -197,6 +201,7 @@ struct RobotFile {
     name: Option<String>,
     gravity: Option<Spanned<Vec<Spanned<f64>>>>,
     routing: Option<Routing>,
+    set_point: Option<Spanned<Vec<Spanned<f64>>>>,
     barrier: Option<BarrierTable>,
     gains: Option<GainsTable>,
     defaults: Option<ModuleTable>,
@@ -350,12 +355,33 @@ impl Checker<'_> {
                 }
             }
         }
+        let set_point = match &file.set_point {
+            Some(v) => {
+                let values = self.finite_list(v.get_ref(), "set_point")?;
+                if values.len() != nq {
+                    return Err(self.invalid(
+                        &v.span(),
+                        "set_point",
+                        format!(
+                            "has {} entries, the robot has {nq} coordinates (3 per module: Δx, \
+                             Δy, δL)",
+                            values.len()
+                        ),
+                    ));
+                }
+                let problem = crate::domain::modules_coordinates_problem(&modules, &values);
+                self.state(problem, v, "set_point")?;
+                Some(values)
+            }
+            None => None,
+        };
         Ok(Robot {
             name,
             source: self.path.to_path_buf(),
             gravity,
             barrier,
             gains,
+            set_point,
             routing: file.routing.unwrap_or(Routing::Local),
             limits,
             obstacles,

@@ -23,12 +23,17 @@ pub enum FileError {
         kind: &'static str,
         source: std::io::Error,
     },
-    /// The file is not UTF-8 text, not valid TOML, or a field has the wrong type.
+    /// The file is not UTF-8 text, not valid TOML, or a field has the wrong type or is
+    /// unknown.
     #[error("{path}:{line}:{column}: {message}", path = path.display())]
     Syntax {
         path: PathBuf,
         line: usize,
         column: usize,
+        /// The field the message names (`module[2].mass`; for an entry of an array, the
+        /// array), `None` when the problem is not one field's (not UTF-8, a table header
+        /// not closed).
+        field: Option<String>,
         message: String,
     },
     /// A field has a value that cannot be used.
@@ -82,6 +87,7 @@ pub fn decode(bytes: Vec<u8>, path: &Path) -> Result<String, FileError> {
             path: path.to_path_buf(),
             line,
             column,
+            field: None,
             message: format!(
                 "not UTF-8 text: byte 0x{:02X} does not belong to a character here; \
                  description files are UTF-8",
@@ -114,16 +120,23 @@ impl Checker<'_> {
     /// A [`FileError::Syntax`] from a TOML error: at its position, with the message of
     /// [`describe_toml`] (a duplicate key also names the line of its first definition).
     pub fn syntax(&self, error: &toml::de::Error) -> FileError {
-        self.syntax_at(error, describe_toml(self.text, error))
+        let (field, message) = describe_toml_field(self.text, error);
+        self.syntax_at(error, field, message)
     }
 
-    fn syntax_at(&self, error: &toml::de::Error, message: String) -> FileError {
+    fn syntax_at(
+        &self,
+        error: &toml::de::Error,
+        field: Option<String>,
+        message: String,
+    ) -> FileError {
         let span = error.span().unwrap_or(0..0);
         let (line, column) = line_column(self.text, span.start);
         FileError::Syntax {
             path: self.path.to_path_buf(),
             line,
             column,
+            field,
             message,
         }
     }
@@ -229,7 +242,7 @@ impl<'a> Checker<'a> {
                 .message()
                 .strip_prefix("missing field `")
                 .and_then(|m| m.strip_suffix('`'));
-            let place = place(error.path(), missing);
+            let (field, place) = place(error.path(), missing);
             let message = match missing {
                 Some(_) => format!("missing; {} must give it", table_words(error.path())),
                 None => plain_words(inner.message()),
@@ -239,7 +252,7 @@ impl<'a> Checker<'a> {
             } else {
                 format!("{place}: {message}")
             };
-            self.syntax_at(inner, message)
+            self.syntax_at(inner, field, message)
         })
     }
 }
@@ -260,9 +273,14 @@ pub fn line_column(text: &str, at: usize) -> (usize, usize) {
 /// out from the text (``field `module[1].margin`: `0.005 0.1` is not a number; …``): what
 /// is wrong and how to write it. A duplicate key also names the line of its first definition.
 pub fn describe_toml(text: &str, error: &toml::de::Error) -> String {
+    describe_toml_field(text, error).1
+}
+
+/// [`describe_toml`], with the field the message names (`None`: it names none).
+fn describe_toml_field(text: &str, error: &toml::de::Error) -> (Option<String>, String) {
     let message = error.message();
     let Some(span) = error.span() else {
-        return message.to_string();
+        return (None, message.to_string());
     };
     if message.starts_with("duplicate key") {
         return duplicate(text, &span);
@@ -316,9 +334,12 @@ pub fn describe_toml(text: &str, error: &toml::de::Error) -> String {
     };
     let field = scan.field();
     match (field.is_empty(), scan.entry()) {
-        (true, _) => what,
-        (false, None) => format!("field `{field}`: {what}"),
-        (false, Some(k)) => format!("field `{field}`, entry {k}: {what}"),
+        (true, _) => (None, what),
+        (false, None) => (Some(field.clone()), format!("field `{field}`: {what}")),
+        (false, Some(k)) => (
+            Some(field.clone()),
+            format!("field `{field}`, entry {k}: {what}"),
+        ),
     }
 }
 
@@ -661,8 +682,9 @@ fn scan(text: &str, at: usize) -> Scan {
 /// Where a serde error lies, from its path and the field it lacks, if that is the error:
 /// ``field `module[2].mass` ``, ``field `gravity`, entry 2``, ``field `gains.kd`, row 1
 /// entry 2``, ``field `hardware.module[2].servo_ids` ``. Arrays of tables count from 1; the
-/// private keys of `toml::Spanned` are left out.
-fn place(path: &serde_path_to_error::Path, missing: Option<&str>) -> String {
+/// private keys of `toml::Spanned` are left out. Returns the field alone (`None` for the
+/// file as a whole) and the text.
+fn place(path: &serde_path_to_error::Path, missing: Option<&str>) -> (Option<String>, String) {
     let mut field = String::new();
     let mut entries: Vec<usize> = Vec::new();
     let missing = missing.map(|key| Segment::Map {
@@ -686,9 +708,9 @@ fn place(path: &serde_path_to_error::Path, missing: Option<&str>) -> String {
         }
     }
     if field.is_empty() {
-        return String::new();
+        return (None, String::new());
     }
-    match entries[..] {
+    let text = match entries[..] {
         [] => format!("field `{field}`"),
         [k] => format!("field `{field}`, entry {k}"),
         [i, j] => format!("field `{field}`, row {i} entry {j}"),
@@ -696,7 +718,8 @@ fn place(path: &serde_path_to_error::Path, missing: Option<&str>) -> String {
             let path: Vec<String> = deeper.iter().map(|k| k.to_string()).collect();
             format!("field `{field}`, entry {}", path.join("."))
         }
-    }
+    };
+    (Some(field), text)
 }
 
 /// The table a serde path ends in, as written in a file: `every [[hardware.module]]
@@ -754,8 +777,9 @@ fn keys(table: &DeTable, prefix: &str, out: &mut Vec<(String, Range<usize>, Stri
 }
 
 /// The message of a duplicate key written at `span`: the key, and the field and line of
-/// its first definition (the closest earlier key of that name in the recovered document).
-fn duplicate(text: &str, span: &Range<usize>) -> String {
+/// its first definition (the closest earlier key of that name in the recovered document),
+/// with that field if it is known.
+fn duplicate(text: &str, span: &Range<usize>) -> (Option<String>, String) {
     let written = text.get(span.clone()).unwrap_or("").trim();
     let name = written
         .strip_prefix('"')
@@ -774,17 +798,26 @@ fn duplicate(text: &str, span: &Range<usize>) -> String {
         .filter(|(key, at, _)| key == name && at.start < span.start)
         .max_by_key(|(_, at, _)| at.start);
     match first {
-        Some((_, at, field)) => format!(
-            "duplicate key `{name}`: field `{field}` is already given on line {}; give each \
-             key (and each [table]) once",
-            line_column(text, at.start).0
+        Some((_, at, field)) => (
+            Some(field.clone()),
+            format!(
+                "duplicate key `{name}`: field `{field}` is already given on line {}; give \
+                 each key (and each [table]) once",
+                line_column(text, at.start).0
+            ),
         ),
         None => match earlier_line(text, span.start, name) {
-            Some(line) => format!(
-                "duplicate key `{name}`: already given on line {line}; give each key (and \
-                 each [table]) once"
+            Some(line) => (
+                None,
+                format!(
+                    "duplicate key `{name}`: already given on line {line}; give each key (and \
+                     each [table]) once"
+                ),
             ),
-            None => format!("duplicate key `{name}`: give each key (and each [table]) once"),
+            None => (
+                None,
+                format!("duplicate key `{name}`: give each key (and each [table]) once"),
+            ),
         },
     }
 }
@@ -890,6 +923,37 @@ mod tests {
         assert!(
             robot_error("[[module]]\n[barrier]\np1 = 1\n[ barrier ]\np2 = 2\n")
                 .starts_with("robots/x.toml:4:3: duplicate key `barrier`: already given on line 2")
+        );
+    }
+
+    /// A syntax error names its field in `field`, as its message does: a wrong type, an
+    /// unknown field, a value TOML cannot read, a duplicate key; none for what is no
+    /// field's (not UTF-8).
+    #[test]
+    fn syntax_errors_carry_the_field_they_name() {
+        let field = |text: &str| match Robot::parse(text, Path::new("robots/x.toml")) {
+            Err(FileError::Syntax { field, message, .. }) => (field, message),
+            other => panic!("expected a Syntax error, got {other:?}"),
+        };
+        for (text, expected) in [
+            ("[[module]]\nmass = \"heavy\"\n", "module[1].mass"),
+            ("[[module]]\n[[module]]\nmas = 1\n", "module[2].mas"),
+            ("gravity = [0, 0 -9.81]\n[[module]]\n", "gravity"),
+            (
+                "modules = 2\n[gains]\nkp = [[1, 2], [3, \"x\"]]\n",
+                "gains.kp",
+            ),
+            ("[[module]]\nmass = 0.1\nmass = 0.2\n", "module[1].mass"),
+            ("modules = 2\nfoo = 1\n", "foo"),
+        ] {
+            let (got, message) = field(text);
+            assert_eq!(got.as_deref(), Some(expected), "{message}");
+            assert!(message.contains(&format!("`{expected}`")), "{message}");
+        }
+        let error = decode(vec![0xFF], Path::new("x")).unwrap_err();
+        assert!(
+            matches!(error, FileError::Syntax { field: None, .. }),
+            "{error:?}"
         );
     }
 

@@ -24,7 +24,7 @@ use crate::robot::Robot;
 ///
 /// Gains default to the robot file's (`[gains]`, `[barrier]`), else the paper's
 /// (`K_P = 5 I`, `K_D = I`, `p1 = p2 = 10`); `safety` to the robot file's `[hardware]
-/// safety`, else `"sampled"`, the guarantee over the whole hold of `control_period`
+/// safety`, else `"certified"`, the guarantee over the whole hold of `control_period`
 /// seconds (docs/model.md §5).
 #[pyclass(module = "softcbf")]
 pub struct Controller {
@@ -129,6 +129,16 @@ impl Controller {
         let q = vector(q, "q", nq)?;
         let qd = vector(qd, "qd", nq)?;
         let set_point = vector(set_point, "set_point", nq)?;
+        // A set point outside the model's domain is no reference the filter can keep safe
+        // toward (the command line refuses it too).
+        if let Some(problem) = softcbf_description::domain::coordinates_problem(
+            &self.model.robot,
+            set_point.as_slice(),
+        ) {
+            return Err(PyValueError::new_err(format!(
+                "set_point: outside the model's domain: {problem}"
+            )));
+        }
         let velocity = set_point_velocity
             .map(|v| vector(v, "set_point_velocity", nq))
             .transpose()?;
@@ -195,7 +205,7 @@ impl Controller {
         PyArray1::from_slice(py, self.controller.barriers())
     }
 
-    /// The safety mode (`"sampled"`, `"paper"`, `"hold-correction"`).
+    /// The safety mode (`"certified"`, `"paper"`, `"hold-correction"`, `"predicted"`).
     #[getter]
     fn safety(&self) -> &'static str {
         self.controller.settings().safety.name()

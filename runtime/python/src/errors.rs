@@ -43,8 +43,12 @@ pub fn file_error(py: Python<'_>, error: &FileError) -> PyErr {
             };
         }
         FileError::Syntax {
-            path, line, column, ..
-        } => (path, *line, *column, None),
+            path,
+            line,
+            column,
+            field,
+            ..
+        } => (path, *line, *column, field.clone()),
         FileError::Invalid {
             path, line, field, ..
         } => (path, *line, 0, Some(field.clone())),

@@ -26,7 +26,7 @@ use crate::robot::build_model;
 /// The scenario argument: None (the paper's), a path, or a dict in the scenario format.
 fn scenario_file(py: Python<'_>, scenario: Option<&Bound<'_, PyAny>>) -> PyResult<ScenarioFile> {
     let Some(scenario) = scenario else {
-        return Ok(ScenarioFile::paper_sim());
+        return Ok(ScenarioFile::default_scenario());
     };
     if let Ok(dict) = scenario.cast::<PyDict>() {
         let text = dict_to_toml(dict)?;
@@ -50,7 +50,7 @@ fn scenario_file(py: Python<'_>, scenario: Option<&Bound<'_, PyAny>>) -> PyResul
 /// (scenarios/README.md), or None for the paper's simulation. The keywords override the
 /// scenario as the command line's options do, with the same checks: `robot` (a `Robot` or
 /// a path), `plant` (path), `set_point` (`nq` numbers), `duration`, `control_period`,
-/// `record_period` \[s\], `kp`, `kd`, `p`, `p1`, `p2`, `safety` (`"sampled"`, `"paper"`,
+/// `record_period` \[s\], `kp`, `kd`, `p`, `p1`, `p2`, `safety` (`"certified"`, `"paper"`, `"predicted"`,
 /// `"hold-correction"`), `filter` and `compare` (also run plain PD+, as
 /// `result.comparison`). The GIL is released while it runs.
 #[pyfunction]
@@ -127,7 +127,8 @@ pub fn simulate(
         .map_err(value_error)?;
     let scenario = file.resolve_with(&model, &overrides).map_err(|e| match e {
         softcbf::scenario::ScenarioError::File(e) => file_error(py, &e),
-        softcbf::scenario::ScenarioError::Option(message) => value_error(message),
+        softcbf::scenario::ScenarioError::Option(message)
+        | softcbf::scenario::ScenarioError::Missing(message) => value_error(message),
     })?;
     let filter = scenario.controller.filter;
     let compare = filter && scenario.compare;

@@ -22,7 +22,7 @@ def test_verify_writes_what_the_command_writes(root, softcbf_bin, tmp_path):
     assert runs["run"].tolist() == list(range(8))
     assert runs["seed"].dtype in (np.int64, np.uint64)
     assert runs["lowest_barrier [m]"].dtype == np.float64
-    assert isinstance(runs["safety"], list) and set(runs["safety"]) <= {"paper", "sampled"}
+    assert isinstance(runs["safety"], list) and set(runs["safety"]) <= {"paper", "certified"}
     assert result.report["runs"] == 8
 
 
@@ -46,15 +46,25 @@ def test_identify_errors_are_exceptions(root, tmp_path):
                          tmp_path / "identified.toml", timing_uncertainty_ms=-1.0)
 
 
-def three_modules(root, tmp_path):
-    """The paper's robot with a third module: a structure no build has compiled."""
-    text = (root / "robots" / "paper-sim.toml").read_text()
+def absent_structure(root, tmp_path):
+    """The paper's robot with as many modules as make a structure this build of the package
+    has no compiled model for: 3, unless the build has that one (a user may register any
+    robot, `softcbf-codegen add`), then 5, 6, … Returns the file and its module count."""
+    # Without the paper's set point, which has entries for two modules (comments are left).
+    text = "".join("#" + line if line.startswith("set_point") else line
+                   for line in (root / "robots" / "paper-sim.toml").read_text()
+                   .splitlines(keepends=True))
     first = text.index("[[module]]")
     end = text.find("[[module]]", first + 1)
     module = text[first:end]
-    robot_file = tmp_path / "three modules.toml"
-    robot_file.write_text(text[:end] + module + text[end:])
-    return robot_file
+    robot_file = tmp_path / "more modules.toml"
+    for modules in range(3, 64):
+        robot_file.write_text(text[:end] + module * (modules - 2) + text[end:])
+        try:
+            softcbf.Robot.load(robot_file).model(interpreted=False)
+        except softcbf.NoGeneratedModelError:
+            return robot_file, modules
+    pytest.fail("this build has a compiled model for every paper robot of 3 to 63 modules")
 
 
 def interpreted_warning(caught, robot_file):
@@ -72,9 +82,10 @@ def interpreted_warning(caught, robot_file):
 
 def test_a_robot_without_a_generated_model_runs_interpreted_and_says_how_to_build_one(
         root, tmp_path):
-    robot_file = three_modules(root, tmp_path)
+    robot_file, modules = absent_structure(root, tmp_path)
     robot = softcbf.Robot.load(robot_file)
-    assert robot.modules == 3 and robot.nq == 9
+    nq = 3 * modules
+    assert robot.modules == modules and robot.nq == nq
 
     with pytest.warns(RuntimeWarning) as caught:
         model = robot.model()
@@ -82,18 +93,19 @@ def test_a_robot_without_a_generated_model_runs_interpreted_and_says_how_to_buil
     assert model.interpreted and model.generated_model == "interpreted"
     # Six corners and three limits (the domain's defaults) per module, as the table lists.
     labels = model.barrier_labels
-    assert model.nq == 9 and model.nb == len(labels) == 3 * (6 + 3)
-    assert [l for l in labels if l.startswith("module 3 ")][6:] == [
-        "module 3 elongation min", "module 3 elongation max", "module 3 bend"]
+    assert model.nq == nq and model.nb == len(labels) == modules * (6 + 3)
+    assert [l for l in labels if l.startswith(f"module {modules} ")][6:] == [
+        f"module {modules} elongation min", f"module {modules} elongation max",
+        f"module {modules} bend"]
     # The barrier Jacobian against central differences of the barriers.
-    q = np.array([0.004, -0.002, 0.001, -0.003, 0.001, -0.002, 0.002, 0.003, 0.0])
-    qd = np.array([0.01, -0.02, 0.005, 0.0, 0.01, -0.01, 0.02, 0.0, 0.01])
+    q = np.resize([0.004, -0.002, 0.001, -0.003, 0.001, -0.002, 0.002, 0.003, 0.0], nq)
+    qd = np.resize([0.01, -0.02, 0.005, 0.0, 0.01, -0.01, 0.02, 0.0, 0.01], nq)
     values = model.evaluate(q, qd)
     jacobian = values["barrier_jacobian"]
-    assert jacobian.shape == (model.nb, 9) and np.all(np.isfinite(values["mass_matrix"]))
+    assert jacobian.shape == (model.nb, nq) and np.all(np.isfinite(values["mass_matrix"]))
     h = 1e-6
-    for k in range(9):
-        step = np.zeros(9)
+    for k in range(nq):
+        step = np.zeros(nq)
         step[k] = h
         difference = (model.evaluate(q + step, qd)["barriers"]
                       - model.evaluate(q - step, qd)["barriers"]) / (2 * h)
@@ -109,14 +121,14 @@ def test_a_robot_without_a_generated_model_runs_interpreted_and_says_how_to_buil
     with pytest.warns(RuntimeWarning) as caught:
         controller = softcbf.Controller(robot, safety="paper")
     interpreted_warning(caught, robot_file)
-    tau, status = controller.tick(q, qd, np.zeros(9))
-    assert tau.shape == (9,) and np.all(np.isfinite(tau)) and status in softcbf.STATUSES
+    tau, status = controller.tick(q, qd, np.zeros(nq))
+    assert tau.shape == (nq,) and np.all(np.isfinite(tau)) and status in softcbf.STATUSES
 
     with pytest.warns(RuntimeWarning) as caught:
         run = softcbf.simulate({"duration": 0.05, "safety": "paper",
-                                "initial": {"q": [0.0] * 9, "qd": [0.0] * 9},
-                                "reference": {"set_point": [0.02, 0.0, -0.01] * 3}},
+                                "initial": {"q": [0.0] * nq, "qd": [0.0] * nq},
+                                "reference": {"set_point": [0.02, 0.0, -0.01] * modules}},
                                robot=robot)
     interpreted_warning(caught, robot_file)
-    assert run.q.shape[1] == 9 and run.t[-1] == pytest.approx(0.05)
+    assert run.q.shape[1] == nq and run.t[-1] == pytest.approx(0.05)
     assert np.all(np.isfinite(run.q)) and np.all(np.isfinite(run.barriers))

@@ -8,7 +8,7 @@ import softcbf
 SET_POINT = np.array([0.08, 0.0, -0.05, 0.0, -0.06, -0.07])  # the paper's, beyond contact
 
 
-@pytest.mark.parametrize("safety", ["paper", "sampled", "hold-correction"])
+@pytest.mark.parametrize("safety", ["paper", "certified", "hold-correction", "predicted"])
 def test_tick_reproduces_the_simulator_bit_for_bit(safety):
     # The simulator ticks the Rust controller on the plant's state and records both; fed
     # the recorded states in order, a controller built from Python gives the same commands.
@@ -71,7 +71,7 @@ def test_out_receives_tau():
 
 def test_gains_default_to_the_robot_file_and_are_checked():
     robot = softcbf.Robot.paper_sim()
-    assert softcbf.Controller(robot).safety == "sampled"
+    assert softcbf.Controller(robot).safety == "certified"
     assert softcbf.Controller(robot, control_period=0.03).control_period == 0.03
     for kwargs, text in [({"kp": -1.0}, "kp: must be"),
                          ({"kd": float("nan")}, "kd: must be"),

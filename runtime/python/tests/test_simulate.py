@@ -27,9 +27,9 @@ def same_bits(a, b):
     "args, kwargs",
     [
         ([], {}),
-        (["--safety", "sampled", "--set-point", "0.05,0.01,-0.02,0,-0.04,-0.01",
+        (["--safety", "certified", "--set-point", "0.05,0.01,-0.02,0,-0.04,-0.01",
           "--duration", "1", "--record-period", "0.0005", "--kp", "8", "--p", "12"],
-         {"safety": "sampled", "set_point": [0.05, 0.01, -0.02, 0, -0.04, -0.01],
+         {"safety": "certified", "set_point": [0.05, 0.01, -0.02, 0, -0.04, -0.01],
           "duration": 1.0, "record_period": 0.0005, "kp": 8.0, "p": 12.0}),
     ],
 )
@@ -78,7 +78,10 @@ def test_a_dict_scenario_equals_its_file(root, tmp_path):
     from_file = softcbf.simulate(root / "scenarios" / "paper-sim.toml", duration=0.5)
     tomllib = pytest.importorskip("tomllib")
     as_dict = tomllib.loads(text)
-    as_dict["reference"]["set_point"] = np.array(as_dict["reference"]["set_point"])
+    # The file gives no [reference] (the robot file's set point runs); the dict gives the
+    # same set point as a numpy array.
+    assert "reference" not in as_dict
+    as_dict["reference"] = {"set_point": np.array([0.08, 0.0, -0.05, 0.0, -0.06, -0.07])}
     from_dict = softcbf.simulate(as_dict, duration=0.5)
     assert same_bits(from_file.q, from_dict.q)
     assert same_bits(from_file.tau, from_dict.tau)
@@ -123,11 +126,28 @@ def test_bad_scenarios_name_file_line_and_field(tmp_path):
         str(bad), 3, "control_period")
     assert f"{bad}:3: field `control_period`" in str(caught.value)
 
+    # A type error and an unknown field name their field in `field` too, not only in the
+    # message.
     with pytest.raises(softcbf.DescriptionError) as caught:
         softcbf.simulate({"duration": "long"})
     assert caught.value.path == "<scenario dict>"
-    with pytest.raises(softcbf.DescriptionError, match="unknown field `durration`"):
+    assert (caught.value.line, caught.value.field) == (1, "duration")
+    with pytest.raises(softcbf.DescriptionError, match="unknown field `durration`") as caught:
         softcbf.simulate({"durration": 1.0})
+    assert caught.value.field == "durration"
+    robot_file = tmp_path / "robot.toml"
+    robot_file.write_text("[[module]]\nmass = 0.1\n\n[[module]]\nmass = \"heavy\"\n")
+    with pytest.raises(softcbf.DescriptionError) as caught:
+        softcbf.Robot.load(robot_file)
+    assert (caught.value.line, caught.value.field) == (5, "module[2].mass"), str(caught.value)
+    robot_file.write_text("[[module]]\nmass = 0.1\nmas = 1\n")
+    with pytest.raises(softcbf.DescriptionError) as caught:
+        softcbf.Robot.load(robot_file)
+    assert (caught.value.line, caught.value.field) == (3, "module[1].mas"), str(caught.value)
+    robot_file.write_text("modules = 2\ngravity = [0, 0 -9.81]\n")
+    with pytest.raises(softcbf.DescriptionError) as caught:
+        softcbf.Robot.load(robot_file)
+    assert caught.value.field == "gravity", str(caught.value)
     with pytest.raises(TypeError, match=r'scenario\["initial"\]'):
         softcbf.simulate({"initial": object()})
     with pytest.raises(FileNotFoundError):
@@ -153,7 +173,7 @@ def test_the_gil_is_released_while_simulating():
     counter.start()
     start = time.perf_counter()
     before = threading.active_count()
-    softcbf.simulate(safety="sampled", duration=2.0)
+    softcbf.simulate(safety="certified", duration=2.0)
     elapsed = time.perf_counter() - start
     done.set()
     counter.join()

@@ -3,10 +3,12 @@
 //!
 //! **The rule.** [`measure`] times [`CYCLES`] back-to-back read-and-write cycles (the
 //! loop's own traffic, torque off, writing zero goal currents), retries included: the loop
-//! pays for them too. The rate the bus allows is one cycle per period for nine cycles in
-//! ten: `1 / (90th percentile)` ([`BusTiming::rate_limit`]); two slow cycles in twenty (a
-//! lost reply, a scheduler hiccup) do not decide. [`choose_rate`] refuses a
-//! rate above it, or with `--rate auto` runs at [`AUTO_RATE_MARGIN`] of it.
+//! pays for them too; the run loop then times the computation of a few commands from the
+//! state read ([`BusTiming::compute`], their median). The rate allowed is one cycle and one computation
+//! per period for nine cycles in ten: `1 / (90th percentile + computation)`
+//! ([`BusTiming::rate_limit`]); two slow cycles in twenty (a lost reply, a scheduler
+//! hiccup) do not decide. [`choose_rate`] refuses a rate above it, or with `--rate auto`
+//! runs at [`AUTO_RATE_MARGIN`] of it.
 //!
 //! **The latency timer.** A USB serial adapter (FTDI, as in the U2D2) holds received bytes
 //! up to its latency timer (16 ms by default) before passing them on, so each reply may wait
@@ -49,6 +51,9 @@ pub struct BusTiming {
     pub slow: f64,
     /// Longest cycle time \[s\].
     pub max: f64,
+    /// The computation of one command (prediction, controller, tensions), the median of
+    /// those timed at the start \[s\] (0 until timed).
+    pub compute: f64,
 }
 
 impl BusTiming {
@@ -73,13 +78,31 @@ impl BusTiming {
             median,
             slow: samples[rank.clamp(1, n) - 1],
             max: samples[n - 1],
+            compute: 0.0,
         })
     }
 
-    /// The highest loop rate the bus holds: one cycle per period for nine cycles in ten
-    /// \[Hz\].
+    /// The same with the computation of a command, `compute` \[s\].
+    pub fn with_compute(self, compute: f64) -> BusTiming {
+        BusTiming {
+            compute: if compute.is_finite() {
+                compute.max(0.0)
+            } else {
+                0.0
+            },
+            ..self
+        }
+    }
+
+    /// The time one tick needs for nine in ten: a cycle and a computation \[s\].
+    pub fn tick_time(&self) -> f64 {
+        self.slow + self.compute
+    }
+
+    /// The highest loop rate the bus and the computation hold: one cycle and one
+    /// computation per period for nine cycles in ten \[Hz\].
     pub fn rate_limit(&self) -> f64 {
-        1.0 / self.slow
+        1.0 / self.tick_time()
     }
 
     /// E.g. `bus: one read+write cycle takes 16.20 ms median, 16.80 ms for 90 % of 20
@@ -95,11 +118,12 @@ impl BusTiming {
         };
         format!(
             "bus: one read+write cycle takes {:.2} ms median, {:.2} ms for 90 % of {} cycles, \
-             {:.2} ms max → at most {:.0} Hz{retried}",
+             {:.2} ms max; computing a command {:.2} ms → at most {:.0} Hz{retried}",
             self.median * 1e3,
             self.slow * 1e3,
             self.cycles,
             self.max * 1e3,
+            self.compute * 1e3,
             self.rate_limit().floor()
         )
     }
@@ -146,9 +170,10 @@ pub enum RateRefusal {
     /// The rate asked for is above what the bus allows.
     #[error(
         "--rate {asked} Hz: the bus cannot hold it: one read+write cycle takes {:.2} ms \
-         (90 % of the cycles measured), at most {:.0} Hz; ask for at most that, or give \
-         --rate auto{}",
+         (90 % of the cycles measured) and computing a command {:.2} ms, at most {:.0} Hz; \
+         ask for at most that, or give --rate auto{}",
         timing.slow * 1e3,
+        timing.compute * 1e3,
         timing.rate_limit().floor(),
         auto.map_or(String::new(), |r| format!(" to run at {r} Hz"))
     )]
@@ -162,9 +187,10 @@ pub enum RateRefusal {
     },
     /// Even the slowest loop rate is too fast for the bus.
     #[error(
-        "--rate auto: one read+write cycle takes {:.0} ms (90 % of the cycles measured): \
-         with the margin the bus allows less than the slowest loop rate, {} Hz",
-        timing.slow * 1e3,
+        "--rate auto: one read+write cycle and a command's computation take {:.0} ms (90 % \
+         of the cycles measured): with the margin the bus allows less than the slowest loop \
+         rate, {} Hz",
+        timing.tick_time() * 1e3,
         limits::RATE_HZ.min
     )]
     TooSlow {
@@ -192,7 +218,7 @@ pub fn choose_rate(
     timing: &BusTiming,
 ) -> Result<RateChoice, RateRefusal> {
     let limit = timing.rate_limit();
-    let held = rate * timing.slow <= 1.0;
+    let held = rate * timing.tick_time() <= 1.0;
     match rule {
         RateRule::Adapt => auto_rate(limit, rate)
             .map(RateChoice::Adapted)
@@ -319,6 +345,44 @@ pub fn latency_timer(port: &Path, sysfs: &Path) -> LatencyTimer {
     }
 }
 
+/// The reply timeout a USB adapter with a latency timer of `timer_ms` lets every reply meet
+/// \[ms\]: 2.5 timer periods, in whole ms. The adapter passes bytes on when a USB packet
+/// fills or its timer expires, counted from the last packet it sent, so the reply that
+/// ends a read waits up to one whole period in it; the rest covers the reply's own time on
+/// the bus (Return Delay Time, wire) and the host's scheduling. 40 ms for FTDI's factory
+/// 16 ms (with the file's 10 ms the last servo's reply of every read is lost), 3 ms for a
+/// tuned 1 ms, 0 without an adapter.
+pub fn reply_timeout_needed_ms(timer_ms: u32) -> f64 {
+    (2.5 * f64::from(timer_ms)).ceil()
+}
+
+/// Whether a reply timeout of `reply_timeout_ms` (given by `source`, e.g. `--reply-timeout-ms
+/// 10`) can be met behind `timer`; if not, what to do instead, for an error before the
+/// first packet.
+pub fn check_reply_timeout(
+    timer: &LatencyTimer,
+    reply_timeout_ms: f64,
+    source: &str,
+) -> Result<(), String> {
+    let LatencyTimer::Found {
+        device, path, ms, ..
+    } = timer
+    else {
+        return Ok(());
+    };
+    let needed = reply_timeout_needed_ms(*ms);
+    if reply_timeout_ms >= needed {
+        return Ok(());
+    }
+    Err(format!(
+        "{source}: a reply timeout of {reply_timeout_ms} ms is shorter than the latency timer \
+         of {device} ({ms} ms) lets replies arrive: the adapter holds each reply up to {ms} ms, \
+         and reads would time out; give --reply-timeout-ms {needed} (at least 2.5 timer \
+         periods), or lower the timer to 1 ms: echo 1 | sudo tee {}",
+        path.display()
+    ))
+}
+
 impl LatencyTimer {
     /// Whether the timer is above 1 ms: replies wait in the adapter.
     pub fn too_long(&self) -> bool {
@@ -381,6 +445,7 @@ mod tests {
             median: 0.9 * slow,
             slow,
             max: 1.1 * slow,
+            compute: 0.0,
         }
     }
 
@@ -428,11 +493,12 @@ mod tests {
             median: 16.2e-3,
             slow: 16.8e-3,
             max: 17.0e-3,
+            compute: 0.0,
         };
         assert_eq!(
             t.line(),
             "bus: one read+write cycle takes 16.20 ms median, 16.80 ms for 90 % of 20 \
-             cycles, 17.00 ms max → at most 59 Hz"
+             cycles, 17.00 ms max; computing a command 0.00 ms → at most 59 Hz"
         );
         t.retried = 2;
         assert!(
@@ -490,6 +556,38 @@ mod tests {
             choose_rate(400.0, RateRule::Overrun, &timing(2e-3)),
             Ok(RateChoice::Asked(400.0))
         );
+    }
+
+    #[test]
+    fn the_computation_of_a_command_counts_against_the_rate() {
+        // The issue's bus: a 20.9 ms cycle allows 47 Hz, and 45 Hz was run though every
+        // tick then overran; with a 2 ms computation 43 Hz is the most.
+        let t = timing(20.9e-3);
+        assert_eq!(
+            choose_rate(45.0, RateRule::Hold, &t),
+            Ok(RateChoice::Asked(45.0))
+        );
+        let t = t.with_compute(2e-3);
+        assert!((t.rate_limit() - 1.0 / 22.9e-3).abs() < 1e-9);
+        let refusal = choose_rate(45.0, RateRule::Hold, &t).unwrap_err();
+        let message = refusal.to_string();
+        assert!(message.contains("computing a command 2.00 ms"), "{message}");
+        assert!(message.contains("at most 43 Hz"), "{message}");
+        assert!(
+            t.line()
+                .contains("; computing a command 2.00 ms → at most 43 Hz")
+        );
+        assert_eq!(
+            choose_rate(33.0, RateRule::Hold, &t),
+            Ok(RateChoice::Asked(33.0))
+        );
+        // 0.8 · 43.67 = 34.9 → 34 Hz.
+        assert_eq!(
+            choose_rate(limits::RATE_HZ.max, RateRule::Adapt, &t),
+            Ok(RateChoice::Adapted(34.0))
+        );
+        // A computation that is not a time counts as none.
+        assert_eq!(t.with_compute(f64::NAN).compute, 0.0);
     }
 
     #[test]
@@ -640,6 +738,35 @@ mod tests {
             LatencyTimer::Absent.lines(),
             ["bus: no latency timer (not a USB serial adapter)"]
         );
+    }
+
+    #[test]
+    #[cfg(unix)]
+    fn a_reply_timeout_the_latency_timer_cannot_meet_is_refused_with_the_fix() {
+        let tree = FakeTree::new("reply-timeout");
+        let port = tree.adapter("ttyUSB5", Some("16"), true);
+        let timer = latency_timer(&port, &tree.sysfs());
+        assert_eq!(reply_timeout_needed_ms(16), 40.0);
+        assert_eq!(reply_timeout_needed_ms(1), 3.0);
+        assert_eq!(reply_timeout_needed_ms(0), 0.0);
+        let error = check_reply_timeout(&timer, 10.0, "hardware.reply_timeout_ms").unwrap_err();
+        assert!(
+            error.starts_with(
+                "hardware.reply_timeout_ms: a reply timeout of 10 ms is shorter than the \
+                 latency timer of ttyUSB5 (16 ms)"
+            ),
+            "{error}"
+        );
+        assert!(error.contains("give --reply-timeout-ms 40"), "{error}");
+        assert!(error.contains("echo 1 | sudo tee "), "{error}");
+        assert_eq!(
+            check_reply_timeout(&timer, 40.0, "--reply-timeout-ms"),
+            Ok(())
+        );
+        // A tuned adapter, or none: the file's 10 ms is enough.
+        let tuned = latency_timer(&tree.adapter("ttyUSB6", Some("1"), true), &tree.sysfs());
+        assert_eq!(check_reply_timeout(&tuned, 10.0, "x"), Ok(()));
+        assert_eq!(check_reply_timeout(&LatencyTimer::Absent, 1.0, "x"), Ok(()));
     }
 
     #[test]

@@ -34,6 +34,8 @@ use crate::settings::{
     resolve_gains, software, vector_text,
 };
 use crate::sim::BarrierMinimum;
+use crate::verdict::Limits as VerdictLimits;
+use softcbf_description::toml_file::shell_word;
 
 /// Options of `softcbf emulate`.
 #[derive(Args, Debug)]
@@ -178,6 +180,10 @@ pub struct RunArgs {
     /// A run whose lowest barrier falls below this (m) is unsafe (exit status 3).
     #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
     pub barrier_threshold: f64,
+    /// The fraction of ticks that may overrun their deadline, and of commands their hold,
+    /// before the run is unsafe (exit status 3), 0 to 1 (default 0.05: one in twenty).
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    pub max_overrun_fraction: Option<f64>,
     /// The servos' Bus Watchdog (ms): they stop by themselves when no instruction comes for
     /// this long (a killed host); 0 turns it off (firmware older than v38). Default: three
     /// periods at --min-rate, at least 100 ms.
@@ -334,6 +340,20 @@ pub fn emulate(args: EmulateArgs, console: &mut Console) -> Result<u8, String> {
         .map(|id| id.to_string())
         .collect();
     let baud = settings.baud;
+    // The command printed works as printed: with the reply timeout this adapter needs
+    // when the robot file's is shorter.
+    let timer_ms = u32::try_from(settings.latency_timer.as_millis()).unwrap_or(u32::MAX);
+    let needed = bus_check::reply_timeout_needed_ms(timer_ms);
+    let timeout_option = if hardware.reply_timeout * 1000.0 < needed {
+        format!(" --reply-timeout-ms {needed}")
+    } else {
+        String::new()
+    };
+    let baud_option = if baud == hardware.baud {
+        String::new()
+    } else {
+        format!(" --baud {baud}")
+    };
     let mut announce = || {
         console.say(&format!(
             "softcbf emulate: servos {} of `{}` at {baud} bit/s",
@@ -342,9 +362,16 @@ pub fn emulate(args: EmulateArgs, console: &mut Console) -> Result<u8, String> {
         ));
         console.say(&realism);
         console.say(&format!("port: {path}"));
+        if !timeout_option.is_empty() {
+            console.say(&format!(
+                "note: the adapter's {timer_ms} ms latency timer holds replies longer than \
+                 the robot file's reply timeout ({} ms): runs need --reply-timeout-ms {needed}",
+                hardware.reply_timeout * 1000.0
+            ));
+        }
         console.say(&format!(
-            "connect with: softcbf run --robot {} --port {path}",
-            args.robot.display()
+            "connect with: softcbf run --robot {} --port {path}{baud_option}{timeout_option}",
+            shell_word(&args.robot)
         ));
         console.say("Ctrl-C to stop");
     };
@@ -367,13 +394,14 @@ pub fn emulate(_args: EmulateArgs, _console: &mut Console) -> Result<u8, String>
     Err("softcbf emulate needs a Unix pseudo-terminal".into())
 }
 
-/// The run's settings from its options and the robot file, each checked against its range.
-/// `hardware` receives the command line's overrides.
+/// The run's settings from its options and the robot file, each checked against its range,
+/// and what its verdict is judged by (threshold, overrun fraction). `hardware` receives the
+/// command line's overrides.
 pub fn run_settings(
     args: &RunArgs,
     robot: &Robot,
     hardware: &mut Hardware,
-) -> Result<(RunSettings, f64), String> {
+) -> Result<(RunSettings, VerdictLimits), String> {
     if let Some(baud) = args.baud {
         hardware.baud = servo::check_baud(baud).map_err(|m| format!("--baud: {m}"))?;
     }
@@ -431,7 +459,12 @@ pub fn run_settings(
         args.barrier_threshold,
         &limits::BARRIER_THRESHOLD_M,
     )?;
-    Ok((settings, threshold))
+    let mut verdict_limits = VerdictLimits::new(threshold);
+    if let Some(fraction) = args.max_overrun_fraction {
+        verdict_limits.max_overrun_fraction =
+            check_number("--max-overrun-fraction", fraction, &servo::FRACTION)?;
+    }
+    Ok((settings, verdict_limits))
 }
 
 /// Each module's `[f_min, f_max]` \[N\].
@@ -606,7 +639,7 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     // First, so that a signal at any later moment ends in the safe stop.
     let stop = signal::stop_flag();
     let (robot, mut hardware) = load(&args.robot)?;
-    let (settings, threshold) = run_settings(&args, &robot, &mut hardware)?;
+    let (settings, limits) = run_settings(&args, &robot, &mut hardware)?;
     let planned = match &settings.experiment {
         Some(design) => Some(Experiment::new(
             design,
@@ -616,6 +649,16 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         )?),
         None => None,
     };
+    // Before the first packet: a reply timeout the adapter's latency timer cannot meet.
+    let latency = port_latency_timer(&args.port);
+    if let Some(timer) = &latency {
+        let source = if args.reply_timeout_ms.is_some() {
+            "--reply-timeout-ms".to_string()
+        } else {
+            format!("hardware.reply_timeout_ms in {}", args.robot.display())
+        };
+        bus_check::check_reply_timeout(timer, hardware.reply_timeout * 1000.0, &source)?;
+    }
     let map = TendonMap::with_hardware(&robot, hardware.clone()).map_err(|e| e.to_string())?;
     let model = Model::new(robot.clone()).map_err(|e| e.to_string())?;
     output_directory(&args.out, "--out")?;
@@ -636,7 +679,6 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
             format!("{} Hz asked", settings.rate)
         },
     ));
-    let latency = port_latency_timer(&args.port);
     for line in latency.iter().flat_map(LatencyTimer::lines) {
         console.say(&line);
     }
@@ -681,25 +723,25 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     let used = used.unwrap_or_else(|| run_settings_report(&args, &robot, &hardware, &settings));
     let progress_error = log.console_error().map(str::to_string);
     let log = log.into_inner();
-    report(&summary, threshold, console);
-    if summary.experiment.is_some() && !summary.stop.is_fault() {
-        console.say(&format!(
-            "next: softcbf identify --robot {} {} --out identified.toml",
-            args.robot.display(),
-            args.out.display()
+    report(&summary, &limits, console);
+    if let Some(experiment) = &summary.experiment
+        && !summary.stop.is_fault()
+    {
+        console.say(&super::next_step::after_experiment(
+            experiment.settings.kind,
+            &args.robot,
+            &robot.name,
+            &args.out,
+            &args.port,
         ));
     }
-    let mut code = match summary.verdict(threshold) {
-        Verdict::Safe => exit::OK,
-        Verdict::Unsafe(why) => {
-            eprintln!("error: unsafe run: {why}");
-            exit::UNSAFE
-        }
-        Verdict::Fault(why) => {
-            eprintln!("error: {why}");
-            exit::FAULT
-        }
-    };
+    let verdict = summary.verdict(&limits);
+    match &verdict {
+        Verdict::Safe => {}
+        Verdict::Unsafe(why) => eprintln!("error: unsafe run: {why}"),
+        Verdict::NotRun(why) | Verdict::Fault(why) => eprintln!("error: {why}"),
+    }
+    let mut code = verdict.status();
     // The log is closed and drawn whatever becomes of the summary, and the other way round.
     // An experiment has no set point to draw or record.
     let set_point: &[f64] = match settings.experiment {
@@ -711,7 +753,7 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         Some(LatencyTimer::Found { ms, .. }) => Some(ms),
         _ => None,
     };
-    let summarized = write_summary(&args.out, &used, set_point, &summary, threshold, latency_ms);
+    let summarized = write_summary(&args.out, &used, set_point, &summary, &limits, latency_ms);
     let mut files = Vec::new();
     for (written, what) in [
         (logged, "the log or figures"),
@@ -874,12 +916,13 @@ fn write_summary(
     settings: &SettingsReport,
     set_point: &[f64],
     s: &RunSummary,
-    threshold: f64,
+    limits: &VerdictLimits,
     latency_timer_ms: Option<u32>,
 ) -> Result<PathBuf, String> {
-    let verdict = match s.verdict(threshold) {
+    let verdict = match s.verdict(limits) {
         Verdict::Safe => "safe".to_string(),
         Verdict::Unsafe(why) => format!("unsafe: {why}"),
+        Verdict::NotRun(why) => format!("not run: {why}"),
         Verdict::Fault(why) => format!("fault: {why}"),
     };
     let finite = |v: f64| v.is_finite().then_some(v);
@@ -904,6 +947,7 @@ fn write_summary(
         "fallbacks": s.fallbacks,
         "invalid_state": s.invalid,
         "relaxed": s.relaxed,
+        "unfiltered": s.unfiltered,
         "interventions": s.interventions,
         "deadline_overruns": s.deadlines.deadline_overruns,
         "hold_overruns": s.deadlines.hold_overruns,
@@ -919,6 +963,7 @@ fn write_summary(
             "median": t.median,
             "p90": t.slow,
             "max": t.max,
+            "compute": t.compute,
             "rate_limit": t.rate_limit(),
         })),
         "latency_timer_ms": latency_timer_ms,
@@ -991,7 +1036,8 @@ fn experiment_json(e: &ExperimentReport) -> serde_json::Value {
     json
 }
 
-fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
+fn report(s: &RunSummary, limits: &VerdictLimits, console: &mut Console) {
+    let threshold = limits.threshold;
     let b = &s.bus;
     let stop = match (&s.stop, signal::received()) {
         (StopReason::Interrupted, Some(number)) => {
@@ -1087,12 +1133,7 @@ fn report(s: &RunSummary, threshold: f64, console: &mut Console) {
         .map(|(id, ok)| format!("{id}:{}", if *ok { "off" } else { "unconfirmed" }))
         .collect();
     console.say(&format!("torque: {}", off.join(" ")));
-    let verdict = match s.verdict(threshold) {
-        Verdict::Safe => "safe".to_string(),
-        Verdict::Unsafe(why) => format!("UNSAFE: {why}"),
-        Verdict::Fault(why) => format!("FAULT: {why}"),
-    };
-    console.say(&format!("verdict: {verdict}"));
+    console.say(&format!("verdict: {}", s.verdict(limits).line()));
 }
 
 #[cfg(test)]

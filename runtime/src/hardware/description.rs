@@ -76,9 +76,9 @@ pub struct Hardware {
     pub velocity_unit: f64,
     /// Default set point `q̄` (length `3·modules`); zeros when not given.
     pub set_point: Vec<f64>,
-    /// How the filter keeps the barriers between ticks (`safety = "sampled" | "paper" |
-    /// "hold-correction"`, or the older `hold_correction = true | false`); `None` when the
-    /// file does not say (the run then uses [`SafetyMode::default`], the sampled-data
+    /// How the filter keeps the barriers between ticks (`safety = "certified" | "paper" |
+    /// "predicted" | "hold-correction"`, or the older `hold_correction = true | false`); `None` when the
+    /// file does not say (the run then uses [`SafetyMode::default`], the certified
     /// guarantee).
     pub safety: Option<SafetyMode>,
     /// One entry per module, base first.

@@ -137,3 +137,36 @@ pub fn finish(
     );
     Ok(files)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// docs/hardware.md names every column a run log has: each extra column, with the
+    /// first and last servo's tension and current and the first coordinate's prediction
+    /// standing for their families.
+    #[test]
+    fn the_docs_list_every_log_column() {
+        let docs = include_str!("../../../docs/hardware.md");
+        let docs = docs.split_whitespace().collect::<Vec<_>>().join(" ");
+        let names = extra_columns(6, &coordinate_names(6));
+        let mut missing = Vec::new();
+        for name in &names {
+            let first_or_last = ["module 1 tendon 1", "module 2 tendon 3"]
+                .iter()
+                .any(|s| name.contains(s));
+            let family = name.starts_with("f module ") || name.starts_with("I module ");
+            if (family && !first_or_last) || (name.starts_with("qpred ") && name != "qpred dx1 [m]")
+            {
+                continue;
+            }
+            if !docs.contains(&format!("`{name}`")) {
+                missing.push(name.clone());
+            }
+        }
+        assert!(
+            missing.is_empty(),
+            "docs/hardware.md does not list {missing:?}"
+        );
+    }
+}

@@ -13,7 +13,8 @@
 //!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures;
 //!   [`status_line`] the live line on the terminal.
 //! - [`experiment`]: the identification experiments of `softcbf run --experiment` (static
-//!   tension sets held to rest, multisines), whose tensions pass through the filter.
+//!   tension sets held to rest, multisines), whose tensions pass through the filter;
+//!   [`next_step`]: what to run after one (both logs named for `softcbf identify`).
 //! - [`signal`]: terminating signals as flags the loops poll; [`cli`]: the two subcommands' options.
 
 pub mod bus_check;
@@ -25,6 +26,7 @@ pub mod experiment;
 pub mod limits;
 pub mod log;
 pub mod mapping;
+pub mod next_step;
 pub mod run_loop;
 pub mod run_outcome;
 pub mod run_settings;

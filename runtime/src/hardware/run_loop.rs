@@ -237,7 +237,7 @@ pub fn run_reporting<P: ServoPort>(
     let period = 1.0 / settings.rate;
     controller_settings.safety = hardware.safety.unwrap_or_default();
     controller_settings.hold = period;
-    let mut controller = Controller::new(model, controller_settings)?;
+    let mut controller = Controller::new(model, controller_settings.clone())?;
     let n = map.n_servos();
     let mut io = ServoIo::new(hardware.servo_ids());
     let mut ws = Workspace {
@@ -279,6 +279,7 @@ pub fn run_reporting<P: ServoPort>(
         invalid: 0,
         relaxed: 0,
         uncertified: 0,
+        unfiltered: 0,
         interventions: 0,
         deadlines: Deadlines::default(),
         clamps: Clamps::default(),
@@ -306,6 +307,20 @@ pub fn run_reporting<P: ServoPort>(
         // The loop's own traffic, torque off, zero tension.
         let zero_currents = vec![0; n];
         let timing = bus_check::measure(bus, &mut io, &zero_currents, hardware.retries)?;
+        // The loop's computation too: a command from the state just read, on a controller
+        // of its own (the run's starts fresh), at the hold the loop would run.
+        let hold = (1.0 / settings.rate).max(timing.slow);
+        let compute = time_computation(
+            model,
+            map,
+            &io,
+            &mut ws,
+            controller_settings.clone(),
+            &settings.set_point,
+            hold,
+            timing.median,
+        )?;
+        let timing = timing.with_compute(compute);
         summary.bus_timing = Some(timing);
         report.bus_measured(&timing);
         let choice = bus_check::choose_rate(settings.rate, settings.rate_rule, &timing)?;
@@ -377,6 +392,63 @@ pub fn run_reporting<P: ServoPort>(
         _ => stop_reason,
     };
     Ok(summary)
+}
+
+/// Commands computed at the start to time the loop's computation (after one more that
+/// warms the controller up, untimed).
+pub const COMPUTE_SAMPLES: usize = 9;
+
+/// The median of [`COMPUTE_SAMPLES`] computations of a command from the state the bus check
+/// read last (torque off, nothing sent), after one untimed (a fresh controller's first
+/// tick has no warm start) \[s\]: the state predicted `age` seconds ahead, the controller's
+/// tick toward `set_point` with a hold of `hold` seconds (on a controller built from
+/// `settings`), tensions and currents, as each tick of the loop does. The median, since a
+/// busy host stretches single ticks that the bus check's quantile does not count either.
+/// 0 when the state is outside the model's domain (the safe start refuses it next).
+#[allow(clippy::too_many_arguments)]
+fn time_computation(
+    model: &Model,
+    map: &TendonMap,
+    io: &ServoIo,
+    ws: &mut Workspace<'_>,
+    settings: ControllerSettings,
+    set_point: &[f64],
+    hold: f64,
+    age: f64,
+) -> Result<f64, ControllerError> {
+    measure(map, io, ws, VelocitySource::Servo, 0.0, 0.0);
+    if domain::state_problem(&model.robot, &ws.q, &ws.qd).is_some() {
+        return Ok(0.0);
+    }
+    let mut controller = Controller::new(model, settings)?;
+    controller.set_hold(hold);
+    controller.set_margin_age(age);
+    let mut times = [0.0_f64; COMPUTE_SAMPLES + 1];
+    for time in &mut times {
+        let start = Instant::now();
+        ws.q_used.copy_from_slice(&ws.q);
+        ws.qd_used.copy_from_slice(&ws.qd);
+        predict(model, ws, age);
+        control::tick(
+            model,
+            &mut controller,
+            &ws.q_used,
+            &ws.qd_used,
+            Reference {
+                q: set_point,
+                qd: &ws.zeros,
+                qdd: &ws.zeros,
+            },
+        );
+        map.tensions_from_tau(controller.tau(), &mut ws.tensions);
+        for (k, f) in ws.tensions.iter().enumerate() {
+            ws.currents[k] = map.current_from_tension(k, *f);
+        }
+        *time = start.elapsed().as_secs_f64();
+    }
+    let timed = &mut times[1..];
+    timed.sort_by(f64::total_cmp);
+    Ok(timed[COMPUTE_SAMPLES / 2])
 }
 
 /// The safe start after [`servo_io::prepare`] and the bus check, up to torque on: a
@@ -615,7 +687,8 @@ fn control_loop<P: ServoPort>(
                     }
                     TickStatus::Relaxed => summary.relaxed += 1,
                     TickStatus::Uncertified(_) => summary.uncertified += 1,
-                    TickStatus::Filtered | TickStatus::Unfiltered => {}
+                    TickStatus::Unfiltered => summary.unfiltered += 1,
+                    TickStatus::Filtered => {}
                 }
                 summary.clamps.add(clamps);
                 // The barriers at the state read: what the robot really did.

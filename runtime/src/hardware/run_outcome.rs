@@ -9,6 +9,8 @@ use crate::hardware::mapping::Clamps;
 use crate::hardware::run_loop::RATE_WINDOW;
 use crate::protocol::BusCounters;
 use crate::sim::{BarrierMinimum, LowestByKind};
+pub use crate::verdict::Verdict;
+use crate::verdict::{Limits, Lowest, Outcome, Overruns, judge};
 
 /// Why a run ended.
 #[derive(Clone, Debug, PartialEq)]
@@ -159,6 +161,8 @@ pub struct RunSummary {
     /// Ticks whose command could not be certified over its hold
     /// ([`crate::control::TickStatus::Uncertified`]).
     pub uncertified: u64,
+    /// Ticks whose command was computed without the safety filter (`--no-filter`).
+    pub unfiltered: u64,
     /// Ticks whose command the safety filter changed (by more than
     /// [`CLAMP_TOLERANCE`](crate::hardware::mapping::CLAMP_TOLERANCE) in some entry of `τ`).
     pub interventions: u64,
@@ -202,11 +206,42 @@ impl RunSummary {
         }
     }
 
-    /// Whether the run was safe: a fault stop or an unconfirmed torque-off is a
-    /// [`Verdict::Fault`]; a lowest barrier below `threshold` (in the barrier's unit, \[m\]
-    /// for all but bend limits, \[rad\]) or a tick that fell back
-    /// to the zero command is [`Verdict::Unsafe`].
-    pub fn verdict(&self, threshold: f64) -> Verdict {
+    /// What the run did, for its verdict ([`crate::verdict::judge`]): ticks are those
+    /// with a command computed from a fresh reading; a reading outside the model's domain
+    /// is its lowest barrier `-∞`; deadlines over the ticks, holds over the commands.
+    pub fn outcome(&self) -> Outcome<'_> {
+        let b = &self.min_barrier;
+        Outcome {
+            ticks: self.commands,
+            lowest: Lowest {
+                value: b.value,
+                label: b.label,
+                unit: b.unit,
+                t: b.t,
+            },
+            invalid_rows: 0,
+            rows: self.ticks,
+            invalid_ticks: self.invalid,
+            failed_ticks: self.fallbacks.saturating_sub(self.invalid),
+            unfiltered_ticks: self.unfiltered,
+            relaxed_ticks: self.relaxed,
+            stopped: None,
+            overruns: Some(Overruns {
+                deadlines: self.deadlines.deadline_overruns,
+                ticks: self.ticks,
+                holds: self.deadlines.hold_overruns,
+                commands: self.commands,
+            }),
+        }
+    }
+
+    /// The run's verdict: a fault stop or an unconfirmed torque-off is a
+    /// [`Verdict::Fault`]; otherwise [`crate::verdict::judge`] of its
+    /// [`outcome`](RunSummary::outcome): no command computed is [`Verdict::NotRun`]; a
+    /// lowest barrier below the threshold, a tick that fell back to the zero command or ran
+    /// without the filter, or overruns beyond the fraction of `limits` are
+    /// [`Verdict::Unsafe`].
+    pub fn verdict(&self, limits: &Limits) -> Verdict {
         if self.stop.is_fault() {
             return Verdict::Fault(format!("stopped on a fault: {}", self.stop));
         }
@@ -222,43 +257,8 @@ impl RunSummary {
                 unconfirmed.join(", ")
             ));
         }
-        let mut reasons = Vec::new();
-        let b = &self.min_barrier;
-        if b.value < threshold {
-            reasons.push(format!(
-                "lowest barrier {:.3e} {unit} ({}, t = {:.3} s) is below the threshold \
-                 {threshold:e} {unit} (--barrier-threshold)",
-                b.value,
-                b.label,
-                b.t,
-                unit = b.unit
-            ));
-        }
-        if self.fallbacks > 0 {
-            reasons.push(format!(
-                "{} ticks fell back to the zero command ({} with an invalid state, {} failed QPs)",
-                self.fallbacks,
-                self.invalid,
-                self.fallbacks - self.invalid
-            ));
-        }
-        if reasons.is_empty() {
-            Verdict::Safe
-        } else {
-            Verdict::Unsafe(reasons.join("; "))
-        }
+        judge(&self.outcome(), limits)
     }
-}
-
-/// What a run's outcome means for the robot.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Verdict {
-    /// It stopped as asked, every barrier above the threshold, every tick valid.
-    Safe,
-    /// It stopped as asked, but a barrier fell below the threshold or ticks were invalid.
-    Unsafe(String),
-    /// It stopped on a fault.
-    Fault(String),
 }
 
 #[cfg(test)]

@@ -82,12 +82,16 @@ impl RunSettings {
     }
 
     /// The lowest rate before the run stops \[Hz\]: the one given, else half of `rate` (with
-    /// [`RateRule::Adapt`], at most [`AUTO_MIN_RATE`]).
+    /// [`RateRule::Adapt`], at most [`AUTO_MIN_RATE`]), never below the slowest loop rate
+    /// (a loop of 1–2 Hz, which `--rate auto` may choose on a slow bus, stops below 1 Hz).
     pub fn min_rate(&self) -> f64 {
-        self.min_rate.unwrap_or(match self.rate_rule {
-            RateRule::Adapt => (self.rate / 2.0).min(AUTO_MIN_RATE),
-            RateRule::Hold | RateRule::Overrun => self.rate / 2.0,
-        })
+        self.min_rate.unwrap_or(
+            match self.rate_rule {
+                RateRule::Adapt => (self.rate / 2.0).min(AUTO_MIN_RATE),
+                RateRule::Hold | RateRule::Overrun => self.rate / 2.0,
+            }
+            .max(limits::RATE_HZ.min.min(self.rate)),
+        )
     }
 
     /// The servos' Bus Watchdog \[s\] (`0`: off): the one given, else the default of the
@@ -194,6 +198,18 @@ impl RunSettings {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_loop_as_slow_as_auto_may_choose_has_valid_defaults() {
+        // `--rate auto` on a bus that allows 1.25–2.5 Hz runs at 1 Hz: the default minimum
+        // rate and watchdog must hold for it (they once asked for 0.5 Hz, below the range).
+        let mut slow = RunSettings::new(limits::RATE_HZ.max, vec![0.0; 6]);
+        slow.rate_rule = RateRule::Adapt;
+        let slow = slow.at_rate(1.0);
+        assert_eq!(slow.min_rate(), 1.0);
+        assert_eq!(slow.validate(6), Ok(()));
+        assert_eq!(slow.at_rate(3.0).min_rate(), 1.5);
+    }
 
     #[test]
     fn the_minimum_rate_and_the_watchdog_follow_the_rate_chosen_unless_given() {

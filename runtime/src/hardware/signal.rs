@@ -4,7 +4,9 @@
 //! The handlers, installed through `signal-hook`, only store into atomics (async-signal
 //! safe). A closed terminal (HUP), Ctrl-C (INT), `kill` (TERM), Ctrl-\ (QUIT) and a closed
 //! output pipe (PIPE) all end a run the same way: zero tension, torque off, the log
-//! closed. SIGKILL cannot be caught; for it the servos' Bus Watchdog stops them.
+//! closed. SIGKILL cannot be caught; for it the servos' Bus Watchdog stops them. A
+//! `softcbf verify` batch polls the same flag, and a second signal ends it at once
+//! ([`exit_on_second_signal`]).
 
 use std::sync::Arc;
 use std::sync::OnceLock;
@@ -53,6 +55,30 @@ fn flags() -> &'static Flags {
 /// Installs the handlers (idempotent) and returns the flag they set.
 pub fn stop_flag() -> &'static AtomicBool {
     &flags().stop
+}
+
+/// After a first terminating signal, makes the second end the process at once with
+/// `status`: for work that may stop anywhere (a `softcbf verify` batch, whose rows are
+/// written whole as they finish), never for the hardware loop, which must stop safely.
+/// Installs the handlers of [`stop_flag`] too; idempotent.
+pub fn exit_on_second_signal(status: i32) {
+    static ARMED: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    let _ = stop_flag();
+    ARMED.get_or_init(|| {
+        let armed = Arc::new(AtomicBool::new(false));
+        #[cfg(unix)]
+        for signal in TERMINATING {
+            // The shutdown first: the first signal finds it disarmed, then arms it.
+            let registered =
+                signal_hook::flag::register_conditional_shutdown(signal, status, armed.clone())
+                    .and_then(|_| signal_hook::flag::register(signal, armed.clone()));
+            if let Err(error) = registered {
+                eprintln!("warning: cannot handle {}: {error}", name(signal as usize));
+            }
+        }
+        let _ = status;
+        armed
+    });
 }
 
 /// Whether a stop was requested.

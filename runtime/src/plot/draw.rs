@@ -8,17 +8,25 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::series::{envelope, tick_decimals, window};
+use super::series::{clip, envelope, tick_decimals, window};
 use super::style::{LineStyle, SET_POINT_DASH, barrier_style, coordinate_style, module_dash};
 use super::{
-    BarrierRow, CAPTION_HEIGHT, COLUMN_WIDTH, COORDINATE_ROWS, FONT, Figure, LABEL_FONT,
-    LABEL_LINE, LABEL_SAMPLE, LEGEND_WIDTH, MARGIN_LEFT, MARGIN_RIGHT, PLOT_MARGIN, SPLIT_SHARE,
-    TITLE_HEIGHT, X_LABEL_HEIGHT, Y_LABEL_WIDTH,
+    BarrierRow, CAPTION_HEIGHT, COLUMN_WIDTH, COORDINATE_ROWS, FONT, Figure, LABEL_FONT, LABEL_GAP,
+    LABEL_LINE, LABEL_SAMPLE, LEGEND_WIDTH, MARGIN_LEFT, MARGIN_RIGHT, PLOT_MARGIN, RowKind,
+    SPLIT_SHARE, TITLE_HEIGHT, X_LABEL_HEIGHT, Y_LABEL_WIDTH,
 };
 use crate::record::Record;
 
 /// Gap between the two parts of a split time axis \[px\].
 const SPLIT_GAP: u32 = 12;
+/// On the part of a split time axis after the split, no time is labelled closer than this
+/// to its start \[px\]: the part before ends with the split's own label (`2.0`), which a
+/// `2` just across the gap would run into.
+const SPLIT_LABEL_CLEARANCE: f64 = 36.0;
+/// Colour of the note that a column's run has invalid states.
+const NOTE_COLOUR: RGBColor = RGBColor(204, 30, 30);
+/// Shade of the time spans with an invalid state.
+const INVALID_SHADE: RGBColor = RGBColor(253, 226, 226);
 
 pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 type Area<DB> = DrawingArea<DB, Shift>;
@@ -30,28 +38,54 @@ const ROW_TEXT: [(&str, &str); COORDINATE_ROWS] = [
     ("filter action τ − τ_nom", "τ − τ_nom [N]"),
 ];
 
+/// What row `r` of panels shows.
+fn row_kind(figure: &Figure, r: usize) -> RowKind {
+    figure
+        .row_kinds
+        .get(r)
+        .copied()
+        .unwrap_or(RowKind::Coordinates(COORDINATE_ROWS - 1))
+}
+
 /// Caption and value-axis label of row `r`.
 fn row_text(figure: &Figure, r: usize) -> (String, String) {
-    match barrier_row(figure, r) {
-        Some(row) => row.text(),
-        None => {
-            let (caption, axis) = ROW_TEXT[r.min(COORDINATE_ROWS - 1)];
+    let row = barrier_row(figure, r);
+    match (row_kind(figure, r), row) {
+        (RowKind::Barriers(_), Some(row)) => row.text(),
+        (RowKind::Zoom(_), Some(row)) => row.zoom_text(),
+        (RowKind::Coordinates(k), _) => {
+            let (caption, axis) = ROW_TEXT[k.min(COORDINATE_ROWS - 1)];
             (caption.to_string(), axis.to_string())
         }
+        (_, None) => (String::new(), String::new()),
     }
 }
 
-/// The barrier row that row `r` of panels is, if it is one.
+/// The barrier row that row `r` of panels shows (whole or zoomed), if it shows one.
 fn barrier_row<'f>(figure: &'f Figure, r: usize) -> Option<&'f BarrierRow> {
-    r.checked_sub(COORDINATE_ROWS)
-        .and_then(|k| figure.barrier_rows.get(k))
+    match row_kind(figure, r) {
+        RowKind::Barriers(k) | RowKind::Zoom(k) => figure.barrier_rows.get(k),
+        RowKind::Coordinates(_) => None,
+    }
 }
 
 /// Value range of row `r`.
 fn row_range(figure: &Figure, r: usize) -> std::ops::Range<f64> {
-    match barrier_row(figure, r) {
-        Some(row) => row.range.clone(),
-        None => figure.rows[r.min(COORDINATE_ROWS - 1)].clone(),
+    let row = barrier_row(figure, r);
+    match (row_kind(figure, r), row) {
+        (RowKind::Barriers(_), Some(row)) => row.range.clone(),
+        (RowKind::Zoom(_), Some(row)) => row.zoom.clone().unwrap_or(row.range.clone()),
+        (RowKind::Coordinates(k), _) => figure.rows[k.min(COORDINATE_ROWS - 1)].clone(),
+        (_, None) => 0.0..1.0,
+    }
+}
+
+/// Factor from a row's values to the numbers its value axis prints: 1000 in a zoomed row
+/// (mm, mrad), else 1.
+fn axis_scale(figure: &Figure, r: usize) -> f64 {
+    match row_kind(figure, r) {
+        RowKind::Zoom(_) => 1e3,
+        _ => 1.0,
     }
 }
 
@@ -88,7 +122,8 @@ pub(crate) fn draw_line<DB: DrawingBackend>(
     result.map_err(|e| e.to_string())
 }
 
-/// Draws the series `(times, values)` over the chart's time span, thinned to its width.
+/// Draws the series `(times, values)` over the chart's time span, thinned to its width and
+/// cut at the edges of its value range, so that nothing is drawn outside the panel.
 fn draw_series<DB: DrawingBackend>(
     chart: &mut Chart<DB>,
     times: &[f64],
@@ -96,10 +131,13 @@ fn draw_series<DB: DrawingBackend>(
     style: LineStyle,
 ) -> Result<(), String> {
     let span = chart.x_range();
+    let range = chart.y_range();
     let (t, y) = window(times, values, span.start, span.end);
     let buckets = chart.plotting_area().dim_in_pixel().0.max(1) as usize;
     for segment in envelope(&t, &y, span.start, span.end, buckets) {
-        draw_line(chart, segment, style, 2)?;
+        for part in clip(&segment, range.start, range.end) {
+            draw_line(chart, part, style, 2)?;
+        }
     }
     Ok(())
 }
@@ -109,7 +147,7 @@ pub(super) fn draw<DB: DrawingBackend>(root: &Area<DB>, figure: &Figure) -> Resu
     let e = |error: DrawingAreaErrorKind<DB::ErrorType>| error.to_string();
     root.fill(&WHITE).map_err(e)?;
     let columns = figure.panels.len();
-    let (titles, body) = root.split_vertically(TITLE_HEIGHT);
+    let (titles, body) = root.split_vertically(figure.title_height());
     let (charts, legend) = body.split_horizontally(COLUMN_WIDTH * columns as u32);
     let title_cells = titles.split_evenly((1, columns));
     let column_areas = charts.split_evenly((1, columns));
@@ -121,13 +159,29 @@ pub(super) fn draw<DB: DrawingBackend>(root: &Area<DB>, figure: &Figure) -> Resu
     {
         let title_style = TextStyle::from((FONT, 24, FontStyle::Bold).into_font())
             .pos(Pos::new(HPos::Center, VPos::Center));
-        let (w, h) = cell.dim_in_pixel();
+        let (w, _) = cell.dim_in_pixel();
         cell.draw(&Text::new(
             title.to_string(),
-            (w as i32 / 2, h as i32 / 2 + 4),
+            (w as i32 / 2, TITLE_HEIGHT as i32 / 2 + 4),
             title_style,
         ))
         .map_err(e)?;
+        if let Some([first, second]) = figure.invalid.get(c).and_then(|rows| rows.note()) {
+            for (k, (line, weight)) in [(first, FontStyle::Bold), (second, FontStyle::Normal)]
+                .into_iter()
+                .enumerate()
+            {
+                let style = TextStyle::from((FONT, 14, weight).into_font())
+                    .color(&NOTE_COLOUR)
+                    .pos(Pos::new(HPos::Center, VPos::Center));
+                cell.draw(&Text::new(
+                    fit_text(&line, w.saturating_sub(16), 14, weight),
+                    (w as i32 / 2, TITLE_HEIGHT as i32 + 17 * k as i32 + 2),
+                    style,
+                ))
+                .map_err(e)?;
+            }
+        }
         let times: Vec<f64> = record.times().collect();
         let rows = figure.row_count();
         for (r, area) in column.split_evenly((rows, 1)).iter().enumerate() {
@@ -138,11 +192,35 @@ pub(super) fn draw<DB: DrawingBackend>(root: &Area<DB>, figure: &Figure) -> Resu
     let row_height = height / figure.row_count() as u32;
     let (upper, lower) = legend.split_vertically(row_height * COORDINATE_ROWS as u32);
     draw_coordinate_legend(&upper, figure).map_err(e)?;
-    let blocks = lower.split_evenly((figure.barrier_rows.len().max(1), 1));
-    for (row, block) in figure.barrier_rows.iter().zip(&blocks) {
-        draw_barrier_legend(block, row).map_err(e)?;
+    // Each barrier row's legend beside it and its zoomed row.
+    let mut top = 0;
+    for row in &figure.barrier_rows {
+        let rows = if row.zoom.is_some() { 2 } else { 1 };
+        let block = lower
+            .clone()
+            .shrink((0, top), (LEGEND_WIDTH, row_height * rows));
+        draw_barrier_legend(&block, row).map_err(e)?;
+        top += row_height * rows;
     }
     Ok(())
+}
+
+/// `text` cut to fit `width` pixels in the figures' font of `size` and `weight` (with an
+/// ellipsis).
+fn fit_text(text: &str, width: u32, size: u32, weight: FontStyle) -> String {
+    let font = (FONT, size, weight).into_font();
+    let fits = |t: &str| font.box_size(t).map_or(true, |(w, _)| w <= width);
+    if fits(text) {
+        return text.to_string();
+    }
+    let chars: Vec<char> = text.chars().collect();
+    for end in (0..chars.len()).rev() {
+        let cut: String = chars[..end].iter().collect::<String>() + "…";
+        if fits(&cut) {
+            return cut;
+        }
+    }
+    String::new()
 }
 
 /// Builds one chart of a panel over the times `span` with the panel's value range; the
@@ -160,7 +238,16 @@ fn build_chart<'a, DB: DrawingBackend>(
     let x_labels = (area.dim_in_pixel().0 / 80).clamp(2, 10) as usize;
     let y_labels = 6;
     let x_decimals = tick_decimals(span.end - span.start, x_labels);
-    let y_decimals = tick_decimals(y_range.end - y_range.start, y_labels - 1);
+    let scale = axis_scale(figure, r);
+    let y_decimals = tick_decimals(scale * (y_range.end - y_range.start), y_labels - 1);
+    // After a split, no label right at the start: the part before ends with it.
+    let width = area.dim_in_pixel().0.max(1) as f64;
+    let clearance = if first {
+        0.0
+    } else {
+        SPLIT_LABEL_CLEARANCE * (span.end - span.start) / width
+    };
+    let start = span.start;
     let mut builder = ChartBuilder::on(area);
     builder
         .margin_top(PLOT_MARGIN)
@@ -178,8 +265,14 @@ fn build_chart<'a, DB: DrawingBackend>(
     let mut chart = builder
         .build_cartesian_2d(span.clone(), y_range)
         .map_err(e)?;
-    let x_format = |v: &f64| tick_label(*v, x_decimals);
-    let y_format = |v: &f64| tick_label(*v, y_decimals);
+    let x_format = |v: &f64| {
+        if *v < start + clearance {
+            String::new()
+        } else {
+            tick_label(*v, x_decimals)
+        }
+    };
+    let y_format = |v: &f64| tick_label(scale * *v, y_decimals);
     let mut mesh = chart.configure_mesh();
     mesh.x_labels(x_labels)
         .y_labels(y_labels)
@@ -239,6 +332,7 @@ fn draw_panel<DB: DrawingBackend>(
         built.push(build_chart(area, figure, r, span.clone(), *first)?);
     }
     for chart in &mut built {
+        shade_invalid(chart, figure, c)?;
         draw_data(chart, figure, r, record, times)?;
     }
     // The time axis's name, once under the middle of the plot.
@@ -253,10 +347,41 @@ fn draw_panel<DB: DrawingBackend>(
     if let [left, right] = &built[..] {
         draw_break(root, left, right).map_err(e)?;
     }
-    if let Some(row) = barrier_row(figure, r)
+    if let (RowKind::Barriers(_), Some(row)) = (row_kind(figure, r), barrier_row(figure, r))
         && let (Some(first), Some(last)) = (built.first(), built.last())
     {
         draw_active_labels(root, first, last, figure, row, c).map_err(e)?;
+    }
+    Ok(())
+}
+
+/// Shades the time spans where column `c`'s run had an invalid state (light red, across
+/// the panel), so that values drawn there are not read as the robot's.
+fn shade_invalid<DB: DrawingBackend>(
+    chart: &mut Chart<DB>,
+    figure: &Figure,
+    c: usize,
+) -> Result<(), String> {
+    let Some(rows) = figure.invalid.get(c) else {
+        return Ok(());
+    };
+    let (span, range) = (chart.x_range(), chart.y_range());
+    // At least a pixel wide: a single invalid row is a span of no length.
+    let pixel = (span.end - span.start) / chart.plotting_area().dim_in_pixel().0.max(1) as f64;
+    for &(start, end) in &rows.spans {
+        let (start, end) = (
+            start.max(span.start),
+            (end.max(start + pixel)).min(span.end),
+        );
+        if start >= end {
+            continue;
+        }
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(start, range.start), (end, range.end)],
+                INVALID_SHADE.filled(),
+            )))
+            .map_err(|e| e.to_string())?;
     }
     Ok(())
 }
@@ -369,7 +494,8 @@ fn draw_active_labels<DB: DrawingBackend>(
     let line = LABEL_LINE as i32;
     let columns = grid.columns.min(active.len()).max(1);
     let block_left = (right_x.end - 4 - columns as i32 * grid.cell as i32).max(left_x.start);
-    let block_top = (top + 3).min(y_range.end - line * grid.rows(active.len()) as i32);
+    let block_top =
+        (top + LABEL_GAP as i32).min(y_range.end - line * grid.rows(active.len()) as i32);
     root.draw(&Rectangle::new(
         [
             (block_left, block_top),

@@ -9,7 +9,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::super::FONT;
 use super::shape::{self, Bounds, Point, Projection, Rect, Shape, Solid};
-use super::{Camera, Scene, Snapshot, lowest, lowest_corner, zoom_camera};
+use super::{
+    Camera, Scene, Snapshot, lowest, lowest_corner, tolerance_text, violated, zoom_camera,
+};
 use crate::model::Model;
 use softcbf_generated::{BarrierInfo, BarrierKind, Point as Watch};
 
@@ -764,6 +766,9 @@ pub(super) fn captions(scene: &Scene, model: &Model) -> (String, String) {
     if (snapshot.t - snapshot.asked).abs() > tolerance.max(0.5e-3) {
         first.push_str(&format!(" (asked {})", format_time(snapshot.asked)));
     }
+    if snapshot.invalid.is_some() {
+        return (first, "invalid state:".to_string());
+    }
     let second = match lowest(snapshot) {
         Some((j, b)) => {
             let info = model.generated.barrier_table().get(j);
@@ -773,6 +778,15 @@ pub(super) fn captions(scene: &Scene, model: &Model) -> (String, String) {
         None => "no barrier".to_string(),
     };
     (first, second)
+}
+
+/// Colour and weight of a snapshot's second caption: red and bold for an invalid state.
+pub(super) fn caption_style(snapshot: &Snapshot) -> (RGBColor, bool) {
+    if snapshot.invalid.is_some() {
+        (VIOLATED, true)
+    } else {
+        (MUTED, false)
+    }
 }
 
 /// A short name of a barrier, 1-based: `m1 c3` (module 1, corner 3), `m2 δL max`,
@@ -921,7 +935,7 @@ pub(super) fn draw_zoom<DB: DrawingBackend>(
         .get(zoom.barrier)
         .copied()
         .unwrap_or(f64::NAN);
-    let colour = if b < 0.0 {
+    let colour = if violated(b) {
         VIOLATED
     } else if b <= active_below {
         ACTIVE
@@ -989,7 +1003,7 @@ pub(super) fn draw_zoom<DB: DrawingBackend>(
     let (_, h) = area.dim_in_pixel();
     let note_top = h as f64 - ZOOM_NOTE_HEIGHT + 6.0;
     let status = |b: f64| {
-        if b < 0.0 {
+        if violated(b) {
             "below its margin"
         } else if b <= active_below {
             "on its margin"
@@ -1171,7 +1185,11 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
             draw_cell_frame(cell)?;
             let (first, second) = captions(scene, figure.model);
             text(cell, &first, (10, 6), 17, TEXT, true, HPos::Left)?;
-            text(cell, &second, (10, 27), 13, MUTED, false, HPos::Left)?;
+            let (colour, bold) = caption_style(&scene.snapshot);
+            text(cell, &second, (10, 27), 13, colour, bold, HPos::Left)?;
+            if let Some(problem) = &scene.snapshot.invalid {
+                text(cell, problem, (10, 44), 13, VIOLATED, false, HPos::Left)?;
+            }
             if let Some(shape) = &scene.shape {
                 draw_robot(
                     cell,
@@ -1185,13 +1203,20 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
             }
         }
         draw_cell_frame(&zoom_area)?;
-        let caption = if last.snapshot.row.is_some() {
+        let caption = if last.snapshot.invalid.is_some() {
+            format!("end, t = {}: invalid state", format_time(last.snapshot.t))
+        } else if last.snapshot.row.is_some() {
             format!("end, t = {}: gap, edge-on", format_time(last.snapshot.t))
         } else {
             "end: no finite state".to_string()
         };
         text(&zoom_area, &caption, (10, 6), 17, TEXT, true, HPos::Left)?;
-        match zoom(last, &figure.projection, half, zoom_rect) {
+        let zoomed = if last.snapshot.invalid.is_some() {
+            None
+        } else {
+            zoom(last, &figure.projection, half, zoom_rect)
+        };
+        match zoomed {
             Some(z) => {
                 text(
                     &zoom_area,
@@ -1213,17 +1238,37 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
                 )?;
                 draw_zoom(&zoom_area, last, &z, figure.active_below, figure.model)?;
             }
-            None => {
-                text(
-                    &zoom_area,
-                    "nothing to zoom on",
-                    (10, 27),
-                    13,
-                    MUTED,
-                    false,
-                    HPos::Left,
-                )?;
-            }
+            None => match &last.snapshot.invalid {
+                Some(problem) => {
+                    let lines = [
+                        problem.clone(),
+                        "The state left the model's domain: its barrier".to_string(),
+                        "values and shape mean nothing, no gap is shown.".to_string(),
+                    ];
+                    for (k, line) in lines.iter().enumerate() {
+                        text(
+                            &zoom_area,
+                            line,
+                            (10, 27 + 20 * k as i32),
+                            13,
+                            if k == 0 { VIOLATED } else { MUTED },
+                            k == 0,
+                            HPos::Left,
+                        )?;
+                    }
+                }
+                None => {
+                    text(
+                        &zoom_area,
+                        "nothing to zoom on",
+                        (10, 27),
+                        13,
+                        MUTED,
+                        false,
+                        HPos::Left,
+                    )?;
+                }
+            },
         }
     }
     draw_legend(&legend, &entries, &mapping, figure.camera)?;
@@ -1272,7 +1317,10 @@ pub(super) fn legend_entries(active_below: f64, scenery: &Scenery) -> Vec<(Strin
         ("plate".to_string(), Mark::Plate),
         ("base plate".to_string(), Mark::BasePlate),
         (format!("{point} with b ≤ {below}"), Mark::Active),
-        (format!("{point} with b < 0"), Mark::Violated),
+        (
+            format!("{point} with b < −{}", tolerance_text()),
+            Mark::Violated,
+        ),
         (drop.to_string(), Mark::Drop),
         ("margin ε over the plane below".to_string(), Mark::Band),
     ];
@@ -1497,7 +1545,11 @@ pub(super) fn draw_frame<DB: DrawingBackend>(
         draw_cell_frame(cell)?;
         text(cell, title, (10, 6), 16, TEXT, true, HPos::Left)?;
         let (_, second) = captions(scene, frame.model);
-        text(cell, &second, (10, 28), 13, MUTED, false, HPos::Left)?;
+        let (colour, bold) = caption_style(&scene.snapshot);
+        text(cell, &second, (10, 28), 13, colour, bold, HPos::Left)?;
+        if let Some(problem) = &scene.snapshot.invalid {
+            text(cell, problem, (10, 45), 13, VIOLATED, false, HPos::Left)?;
+        }
         if let Some(shape) = &scene.shape {
             draw_robot(
                 cell,
@@ -1563,11 +1615,15 @@ pub(super) fn draw_frame<DB: DrawingBackend>(
     let below = below.trim_start_matches('+');
     let lines = if frame.scenery.is_empty() {
         vec![format!(
-            "orange: corner with b ≤ {below}   red: b < 0   dashed: drop to the plate below"
+            "orange: corner with b ≤ {below}   red: b < −{}   dashed: drop to the plate below",
+            tolerance_text()
         )]
     } else {
         vec![
-            format!("orange: point with b ≤ {below}   red: b < 0   dots: watched points"),
+            format!(
+                "orange: point with b ≤ {below}   red: b < −{}   dots: watched points",
+                tolerance_text()
+            ),
             "dashed: drop to the plate below, or to the obstacle".to_string(),
         ]
     };

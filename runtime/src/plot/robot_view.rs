@@ -9,7 +9,8 @@
 //! margin, a half-space as a translucent patch of its plane across the scene with an arrow
 //! to the allowed side; the points they watch are dots (backbone points at their arc
 //! fractions). A corner or watched point whose barrier is at most
-//! [`ViewOptions::active_below`] is ringed in orange (below zero: in red), with a dashed
+//! [`ViewOptions::active_below`] is ringed in orange (below its margin by more than the
+//! verdict's tolerance, [`violated`]: in red), with a dashed
 //! line down to its foot on the plane of the plate below (the barrier measures that
 //! height) or to the nearest point of the obstacle. The zoom column looks at the final
 //! state edge-on, along the bend axis of the module with the lowest corner barrier, and
@@ -131,8 +132,26 @@ pub struct Snapshot {
     /// Barriers (indices into the model's barrier table) with `b ≤ active_below`,
     /// including those below zero.
     pub active: Vec<usize>,
-    /// Barriers with `b < 0`.
+    /// Barriers below their margin beyond rounding ([`violated`]).
     pub violated: Vec<usize>,
+    /// Why the state of that row cannot be used ([`super::invalid::state_problem`]: not
+    /// finite, or outside the model's domain); then its barrier values mean nothing and
+    /// none is counted active or violated. `None`: a valid state.
+    pub invalid: Option<String>,
+}
+
+/// Whether a barrier value `b` \[m or rad\] is drawn as violated: below zero by more than
+/// [`softcbf_description::limits::BARRIER_TOLERANCE_M`], the tolerance of the verdict
+/// (`softcbf verify`'s default threshold). A barrier held at zero to rounding (−1.6e-12 m)
+/// is on its margin, not past it.
+pub fn violated(b: f64) -> bool {
+    b < -softcbf_description::limits::BARRIER_TOLERANCE_M
+}
+
+/// The violation tolerance as the figures print it: `1 µm`.
+pub(crate) fn tolerance_text() -> String {
+    let micrometres = softcbf_description::limits::BARRIER_TOLERANCE_M * 1e6;
+    format!("{} µm", super::series::short_number(micrometres))
 }
 
 /// World frames `W_{i−1} T_i(s)` of every module's backbone at arc fraction `s` (0: the
@@ -407,8 +426,15 @@ fn snapshot(model: &Model, run: &Run, asked: f64, active_below: f64) -> Snapshot
             b: vec![f64::NAN; m],
             active: Vec::new(),
             violated: Vec::new(),
+            invalid: None,
         };
     };
+    let q = run.q_at(row);
+    let qd: Vec<f64> = run
+        .record
+        .row(row)
+        .map_or_else(|| vec![f64::NAN; q.len()], |r| r.qd.to_vec());
+    let invalid = super::invalid::state_problem(Some(&model.robot), &q, &qd);
     let mut b: Vec<f64> = (0..m)
         .map(|j| run.record.b(j).nth(row).unwrap_or(f64::NAN))
         .collect();
@@ -423,8 +449,14 @@ fn snapshot(model: &Model, run: &Run, asked: f64, active_below: f64) -> Snapshot
             }
         }
     }
-    let active = (0..m).filter(|&j| b[j] <= active_below).collect();
-    let violated = (0..m).filter(|&j| b[j] < 0.0).collect();
+    let (active, violated) = if invalid.is_some() {
+        (Vec::new(), Vec::new())
+    } else {
+        (
+            (0..m).filter(|&j| b[j] <= active_below).collect(),
+            (0..m).filter(|&j| violated(b[j])).collect(),
+        )
+    };
     Snapshot {
         asked,
         row: Some(row),
@@ -432,6 +464,7 @@ fn snapshot(model: &Model, run: &Run, asked: f64, active_below: f64) -> Snapshot
         b,
         active,
         violated,
+        invalid,
     }
 }
 

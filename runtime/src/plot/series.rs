@@ -199,6 +199,64 @@ pub fn envelope(
     segments
 }
 
+/// The parts of the line through `points` that lie within `low ≤ y ≤ high`: where it
+/// leaves or enters the band between two points, the point on the straight line between
+/// them at the band's edge ends or starts a part; a point that is not finite ends a part.
+/// Nothing is drawn outside a panel this way, whatever the values (a run whose state left
+/// the model's domain, or a zoomed panel).
+pub fn clip(points: &[(f64, f64)], low: f64, high: f64) -> Vec<Vec<(f64, f64)>> {
+    let inside = |y: f64| (low..=high).contains(&y);
+    let mut parts = Vec::new();
+    let mut current: Vec<(f64, f64)> = Vec::new();
+    let mut previous: Option<(f64, f64)> = None;
+    for &(t, y) in points {
+        if !(t.is_finite() && y.is_finite()) {
+            parts.push(std::mem::take(&mut current));
+            previous = None;
+            continue;
+        }
+        let Some((t0, y0)) = previous else {
+            if inside(y) {
+                current.push((t, y));
+            }
+            previous = Some((t, y));
+            continue;
+        };
+        previous = Some((t, y));
+        // The part of the segment inside the band, as fractions of its length.
+        let (mut enter, mut leave) = (0.0, 1.0);
+        if y != y0 {
+            let at = |edge: f64| (edge - y0) / (y - y0);
+            let (a, b) = (at(low), at(high));
+            enter = f64::max(enter, a.min(b));
+            leave = f64::min(leave, a.max(b));
+        } else if !inside(y) {
+            continue;
+        }
+        if enter > leave {
+            parts.push(std::mem::take(&mut current));
+            continue;
+        }
+        let point = |s: f64| {
+            let y = y0 + s * (y - y0);
+            (t0 + s * (t - t0), y.clamp(low, high))
+        };
+        if enter > 0.0 {
+            parts.push(std::mem::take(&mut current));
+            current.push(point(enter));
+        }
+        if leave < 1.0 {
+            current.push(point(leave));
+            parts.push(std::mem::take(&mut current));
+        } else {
+            current.push((t, y));
+        }
+    }
+    parts.push(current);
+    parts.retain(|part| !part.is_empty());
+    parts
+}
+
 /// A value range `[low, high]` grown to cover `values` (non-finite ones ignored).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Range {
@@ -243,6 +301,17 @@ impl Range {
     }
 }
 
+/// `x` with at most six significant digits and no trailing zeros: `1`, `0.5`, `2.25`.
+pub(super) fn short_number(x: f64) -> String {
+    let text = format!("{x:.6}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".into()
+    } else {
+        text.into()
+    }
+}
+
 /// Decimals that tell apart ticks about `span / labels` apart.
 pub(super) fn tick_decimals(span: f64, labels: usize) -> usize {
     let step = span / labels.max(1) as f64;
@@ -250,4 +319,43 @@ pub(super) fn tick_decimals(span: f64, labels: usize) -> usize {
         return 2;
     }
     (-step.log10().floor()).clamp(0.0, 9.0) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clip_keeps_the_band_and_cuts_at_its_edges() {
+        // Up through the band and out of it, back in, a NaN, then inside.
+        let points = [
+            (0.0, -2.0),
+            (1.0, 0.0),
+            (2.0, 2.0),
+            (3.0, 3.0),
+            (4.0, 0.5),
+            (5.0, f64::NAN),
+            (6.0, 0.25),
+            (7.0, 0.75),
+        ];
+        let parts = clip(&points, -1.0, 1.0);
+        assert_eq!(
+            parts,
+            vec![
+                vec![(0.5, -1.0), (1.0, 0.0), (1.5, 1.0)],
+                vec![(3.8, 1.0), (4.0, 0.5)],
+                vec![(6.0, 0.25), (7.0, 0.75)],
+            ]
+        );
+        // A segment that jumps across the whole band keeps its part inside it.
+        assert_eq!(
+            clip(&[(0.0, -3.0), (4.0, 5.0)], -1.0, 1.0),
+            vec![vec![(1.0, -1.0), (2.0, 1.0)]]
+        );
+        // Nothing inside: nothing drawn; huge values are cut, not drawn off the panel.
+        assert!(clip(&[(0.0, 2.0), (1.0, 3.0)], -1.0, 1.0).is_empty());
+        let far = clip(&[(0.0, 0.0), (1.0, 1e300)], -1.0, 1.0);
+        assert_eq!(far.len(), 1);
+        assert!(far[0].iter().all(|&(_, y)| (-1.0..=1.0).contains(&y)));
+    }
 }

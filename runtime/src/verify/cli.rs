@@ -4,6 +4,7 @@
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use clap::{Args, Subcommand};
@@ -11,16 +12,22 @@ use clap::{Args, Subcommand};
 use crate::cli::{check_number, load_robot};
 use crate::exit;
 use crate::hardware::cli::output_directory;
+use crate::hardware::signal;
 use crate::model::Model;
 use crate::output::{Console, one_line, write_outputs};
 use crate::scenario::ScenarioFile;
 use crate::sim::simulate;
+use crate::verdict::{Limits, Verdict, judge};
+use crate::verify::directory::{self, Found};
 use crate::verify::draw::draw;
+use crate::verify::report::is_unsafe;
 use crate::verify::report::{report, report_json};
 use crate::verify::search::cli::{SearchCommand, is_search_shard, search_command};
 use crate::verify::spec::{RUNS, SEED, VerifyOverrides, VerifySpec};
-use crate::verify::table::{self, Batch, Manifest, read, runs_csv, shard_range, timing_csv, write};
+use crate::verify::table::{self, Batch, Manifest, read, runs_csv, shard_range, write};
 use crate::verify::{RunRow, figures, run_batch};
+use softcbf_description::limits::Limit;
+use softcbf_description::toml_file::shell_word;
 
 /// Options of `softcbf verify`.
 #[derive(Args)]
@@ -57,9 +64,9 @@ struct BatchArgs {
     /// `softcbf verify merge` joins the slices' directories.
     #[arg(long, value_name = "K/M")]
     shard: Option<String>,
-    /// Worker threads (default: one per core).
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
+    /// Worker threads, 0 to 1024 (default 0: one per core); never more than the runs left.
+    #[arg(long, allow_negative_numbers = true)]
+    threads: Option<i64>,
     /// Simulated time of each run (s), replacing the scenario's.
     #[arg(long, allow_negative_numbers = true)]
     duration: Option<f64>,
@@ -77,6 +84,10 @@ struct BatchArgs {
     /// With --search: candidates per generation (default: twice the variables, 12 to 40).
     #[arg(long, requires = "search")]
     population: Option<i64>,
+    /// Continue the batch (or shard) that an interrupted command left in --out, with the
+    /// same settings; start it if the directory holds none.
+    #[arg(long)]
+    resume: bool,
 }
 
 #[derive(Args)]
@@ -111,14 +122,33 @@ struct ReplayArgs {
     animate: bool,
 }
 
-/// Runs `softcbf verify`; returns the exit status.
+/// Runs `softcbf verify`; returns the exit status. A batch runs to its end (for callers
+/// that keep the process's signals, such as the Python package).
 pub fn verify(args: VerifyArgs, console: &mut Console) -> Result<u8, String> {
+    verify_command(args, console, false)
+}
+
+/// [`verify`] as the `softcbf` command runs it: a terminating signal (Ctrl-C, `kill`, a
+/// closed terminal) interrupts a batch, whose runs under way finish and are written (a
+/// second signal ends it at once), and it exits [`exit::ERROR`] saying how far it got and
+/// how to resume.
+pub fn verify_interruptible(args: VerifyArgs, console: &mut Console) -> Result<u8, String> {
+    verify_command(args, console, true)
+}
+
+fn verify_command(args: VerifyArgs, console: &mut Console, signals: bool) -> Result<u8, String> {
     match args.command {
         Some(VerifyCommand::Merge(merge)) => merge_command(merge, console),
         Some(VerifyCommand::Replay(replay)) => replay_command(replay, console),
-        None => batch_command(args.batch, console),
+        None => batch_command(args.batch, console, signals),
     }
 }
+
+/// Worker threads of a batch (0: one per core).
+pub const THREADS: Limit = Limit::integer(0, 1024);
+
+/// Never set: a batch without signal handling.
+static NEVER: AtomicBool = AtomicBool::new(false);
 
 /// The model and checked spec of a scenario file, with the command line's overrides.
 fn load(
@@ -211,7 +241,8 @@ impl BatchProgress {
         }
     }
 
-    fn update(&self, done: usize, total: usize) {
+    /// `done` of `total` runs written, `before` of them before this command started.
+    fn update(&self, done: usize, total: usize, before: usize) {
         let Ok(mut shown) = self.shown.lock() else {
             return;
         };
@@ -222,7 +253,7 @@ impl BatchProgress {
         }
         *shown = step;
         let elapsed = self.start.elapsed().as_secs_f64();
-        let left = elapsed / done.max(1) as f64 * (total - done) as f64;
+        let left = elapsed / (done - before).max(1) as f64 * (total - done) as f64;
         let width = 30;
         let filled = done * width / total.max(1);
         let bar: String = (0..width)
@@ -243,7 +274,7 @@ impl BatchProgress {
     }
 }
 
-fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
+fn batch_command(args: BatchArgs, console: &mut Console, signals: bool) -> Result<u8, String> {
     let Some(path) = &args.scenario else {
         return Err(
             "--scenario: give the scenario file whose [verify] table declares the ranges \
@@ -252,6 +283,15 @@ fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
         );
     };
     let (shard, slices) = args.shard.as_deref().map_or(Ok((0, 1)), parse_shard)?;
+    let threads = args
+        .threads
+        .map(|n| {
+            THREADS
+                .check_integer(n)
+                .map_err(|m| format!("--threads: {m}"))
+        })
+        .transpose()?
+        .unwrap_or(0) as usize;
     if args.search {
         let (file, model, spec) = load_file(path, args.runs, args.seed, args.duration)?;
         let command = SearchCommand {
@@ -261,7 +301,7 @@ fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
             islands: args.islands,
             shard: args.shard.is_some().then_some((shard, slices)),
             population: args.population,
-            threads: args.threads,
+            threads,
             duration: args.duration,
             out: args.out,
         };
@@ -270,6 +310,23 @@ fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
     let (model, spec) = load(path, args.runs, args.seed, args.duration)?;
     output_directory(&args.out, "--out")?;
     let range = shard_range(spec.runs, shard, slices);
+    let batch = batch_of(&spec, &model, args.duration);
+    let manifest = Manifest {
+        batch: batch.clone(),
+        shard: [shard, slices],
+        first: range.start,
+        end: range.end,
+        software: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    let out = &args.out;
+    let opened = directory::open(out, &manifest, args.resume).map_err(|e| e.to_string())?;
+    let (mut rows, mut timing, mut files) = (opened.rows, opened.timing, opened.files);
+    let stop: &AtomicBool = if signals {
+        signal::exit_on_second_signal(i32::from(exit::ERROR));
+        signal::stop_flag()
+    } else {
+        &NEVER
+    };
     let groups: Vec<String> = spec.groups.iter().map(|g| g.name()).collect();
     console.say(&format!(
         "verify {}: {} of {} runs (shard {shard}/{slices}), seed {}, groups: {}",
@@ -279,73 +336,141 @@ fn batch_command(args: BatchArgs, console: &mut Console) -> Result<u8, String> {
         spec.seed,
         groups.join(", ")
     ));
+    let left = range.start + rows.len()..range.end;
+    match opened.found {
+        Found::Resumed => console.say(&format!(
+            "resuming {}: {} of the {} runs written, {} to run",
+            out.display(),
+            rows.len(),
+            range.len(),
+            left.len()
+        )),
+        Found::Finished => console.say(&format!(
+            "{} held a finished batch: replaced",
+            out.display()
+        )),
+        Found::Nothing if args.resume => console.say(&format!(
+            "--resume: {} holds no batch yet: starting it",
+            out.display()
+        )),
+        Found::Nothing => {}
+    }
+    let workers = if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    }
+    .clamp(1, left.len().max(1));
     let progress = BatchProgress::new();
     let start = Instant::now();
-    let finished = run_batch(
-        &model,
-        &spec,
-        range.clone(),
-        args.threads,
-        &|done, total| progress.update(done, total),
-    )
-    .map_err(|e| e.to_string())?;
-    let wall = start.elapsed().as_secs_f64();
-    let timing: Vec<(usize, f64)> = finished.iter().map(|f| (f.row.run, f.wall_time)).collect();
-    let rows: Vec<RunRow> = finished.into_iter().map(|f| f.row).collect();
-
-    let batch = batch_of(&spec, &model, args.duration);
-    let out = &args.out;
-    let mut written = Vec::new();
-    let mut put = |name: &str, text: &str| -> Result<(), String> {
-        let path = out.join(name);
-        write(&path, text).map_err(|e| e.to_string())?;
-        written.push(path.display().to_string());
+    let (before, total) = (rows.len(), range.len());
+    let mut write_error = None;
+    let ended = run_batch(&model, &spec, left.clone(), workers, stop, &mut |f| {
+        if let Err(e) = files.push(&f.row, f.wall_time) {
+            let message = e.to_string();
+            write_error = Some(message.clone());
+            return Err(message);
+        }
+        timing.push((f.row.run, f.wall_time));
+        rows.push(f.row);
+        progress.update(rows.len(), total, before);
         Ok(())
+    });
+    let wall = start.elapsed().as_secs_f64();
+    let written = || {
+        format!(
+            "runs {}..{} are in {}",
+            range.start,
+            range.start + rows.len(),
+            out.join("runs.csv").display()
+        )
     };
-    put("runs.csv", &runs_csv(&rows, model.nq()))?;
-    put("timing.csv", &timing_csv(&timing))?;
-    let manifest = Manifest {
-        batch: batch.clone(),
-        shard: [shard, slices],
-        first: range.start,
-        end: range.end,
-        software: env!("CARGO_PKG_VERSION").to_string(),
+    let ended = match ended {
+        Ok(ended) => ended,
+        Err(e) => {
+            let why = write_error.unwrap_or_else(|| e.to_string());
+            return Err(format!("{why} ({})", written()));
+        }
     };
-    put(
-        "shard.json",
-        &serde_json::to_string_pretty(&manifest).map_err(|e| e.to_string())?,
-    )?;
+    let new = rows.len() - before;
+    let per_run: f64 = timing.iter().rev().take(new).map(|t| t.1).sum();
+    let speed = format!(
+        "{new} runs in {wall:.1} s wall ({:.1} ms per run on one core, {workers} threads)",
+        1e3 * per_run / new.max(1) as f64
+    );
+    if ended.interrupted {
+        let signal = signal::received().map_or("a stop request", signal::name);
+        let unsafe_runs = rows.iter().filter(|r| is_unsafe(r, spec.threshold)).count();
+        let message = format!(
+            "verify interrupted by {signal} after {} of the {total} runs (shard {shard}/\
+             {slices}; {unsafe_runs} of them unsafe): {}; continue with: {}",
+            rows.len(),
+            written(),
+            resume_command(&args)
+        );
+        console.say(&speed);
+        eprintln!("error: {message}");
+        return Ok(exit::ERROR);
+    }
+
+    let mut written = vec![
+        out.join("shard.json").display().to_string(),
+        out.join("runs.csv").display().to_string(),
+        out.join("timing.csv").display().to_string(),
+    ];
     let code = if slices == 1 {
         let code = summarize(out, &batch, &rows, console, &mut written)?;
         console.say(&format!("wrote {}", written.join(", ")));
         code
     } else {
+        // A shard's verdict is its runs' (the report needs every shard: merge them).
+        let unsafe_runs = rows.iter().filter(|r| is_unsafe(r, spec.threshold)).count();
+        console.say(&format!(
+            "shard {shard}/{slices}: {unsafe_runs} of {} runs unsafe (below {:e}, invalid \
+             state, failed QP or stopped)",
+            rows.len(),
+            spec.threshold
+        ));
         console.say(&format!(
             "wrote {}; join the shards with `softcbf verify merge DIR… --out DIR`",
             written.join(", ")
         ));
-        exit::OK
+        if unsafe_runs > 0 {
+            exit::UNSAFE
+        } else {
+            exit::OK
+        }
     };
-    let per_run: Vec<f64> = timing.iter().map(|t| t.1).collect();
-    let sum: f64 = per_run.iter().sum();
-    console.say(&format!(
-        "{} runs in {wall:.1} s wall ({:.1} ms per run on one core, {} threads)",
-        rows.len(),
-        1e3 * sum / rows.len().max(1) as f64,
-        rayon_threads(args.threads)
-    ));
+    console.say(&speed);
     if let Some(error) = console.error() {
         return Err(error.to_string());
     }
     Ok(code)
 }
 
-fn rayon_threads(threads: usize) -> usize {
-    if threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        threads
+/// The command that resumes the batch `args` describe.
+fn resume_command(args: &BatchArgs) -> String {
+    let mut words = vec!["softcbf verify".to_string()];
+    if let Some(path) = &args.scenario {
+        words.push(format!("--scenario {}", shell_word(path)));
     }
+    if let Some(runs) = args.runs {
+        words.push(format!("--runs {runs}"));
+    }
+    if let Some(seed) = args.seed {
+        words.push(format!("--seed {seed}"));
+    }
+    if let Some(shard) = &args.shard {
+        words.push(format!("--shard {}", shard.trim()));
+    }
+    if let Some(duration) = args.duration {
+        words.push(format!("--duration {duration}"));
+    }
+    if let Some(threads) = args.threads {
+        words.push(format!("--threads {threads}"));
+    }
+    words.push(format!("--out {} --resume", shell_word(&args.out)));
+    words.join(" ")
 }
 
 /// Writes report.json and the figures of a whole batch into `out`, prints one line per
@@ -398,6 +523,19 @@ fn summarize(
 }
 
 fn merge_command(args: MergeArgs, console: &mut Console) -> Result<u8, String> {
+    // The output would overwrite the shard it is read from.
+    if let Ok(out) = std::fs::canonicalize(&args.out) {
+        for dir in &args.dirs {
+            if std::fs::canonicalize(dir).is_ok_and(|d| d == out) {
+                return Err(format!(
+                    "--out {}: is one of the shard directories merged ({}); give a \
+                     directory of its own for the merged batch",
+                    args.out.display(),
+                    dir.display()
+                ));
+            }
+        }
+    }
     if args.dirs.first().is_some_and(|dir| is_search_shard(dir)) {
         return crate::verify::search::cli::merge_command(&args.dirs, &args.out, console);
     }
@@ -459,10 +597,14 @@ fn replay_command(args: ReplayArgs, console: &mut Console) -> Result<u8, String>
     console.say(&one_line(&run.summary));
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
     console.say(&format!("wrote {}", names.join(", ")));
-    let unsafe_run =
-        run.summary.min_barrier.value < spec.threshold || run.summary.stopped.is_some();
+    // The verdict `verify` gives this run's row (the same function, the same outcome).
+    let verdict = judge(&run.summary.outcome(), &Limits::new(spec.threshold));
+    console.say(&format!("verdict: {}", verdict.line()));
+    if let Verdict::Unsafe(why) = &verdict {
+        eprintln!("error: unsafe run: {why}");
+    }
     if let Some(error) = console.error() {
         return Err(error.to_string());
     }
-    Ok(if unsafe_run { exit::UNSAFE } else { exit::OK })
+    Ok(verdict.status())
 }

@@ -1,5 +1,7 @@
 //! `softcbf verify`: many closed-loop runs drawn from the ranges a scenario's `[verify]`
-//! table declares, across every core, summarised as `runs.csv`, `report.json` and figures.
+//! table declares, across every core, summarised as `runs.csv`, `report.json` and figures;
+//! rows are written as runs finish, in index order ([`directory`]), so an interrupted batch
+//! keeps them and `--resume` continues it.
 //!
 //! A run is a pure function of the scenario, the batch's seed and the run's index
 //! ([`draw::draw`]): its safety mode and control period come from the index (the groups
@@ -11,6 +13,7 @@
 //! go to `timing.csv`).
 
 pub mod cli;
+pub mod directory;
 pub mod draw;
 pub mod figures;
 pub mod report;
@@ -19,13 +22,14 @@ pub mod spec;
 pub mod start;
 pub mod table;
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
 use std::time::Instant;
-
-use rayon::prelude::*;
 
 use crate::model::Model;
 use crate::sim::{TickCounts, simulate};
+use crate::verdict::{Lowest, Outcome};
 use crate::verify::draw::{Draw, draw};
 use crate::verify::spec::VerifySpec;
 
@@ -57,6 +61,32 @@ pub struct RunRow {
     pub stopped: String,
 }
 
+impl RunRow {
+    /// What the run did, for its verdict ([`crate::verdict::judge`]): the verdict of the
+    /// run's own simulation (`softcbf verify replay`), since a state outside the model's
+    /// domain is its lowest barrier `-∞` here.
+    pub fn outcome(&self) -> Outcome<'_> {
+        let c = &self.counts;
+        Outcome {
+            ticks: c.ticks as u64,
+            lowest: Lowest {
+                value: self.lowest_barrier,
+                label: &self.lowest_label,
+                unit: "",
+                t: self.lowest_t,
+            },
+            invalid_rows: 0,
+            rows: 0,
+            invalid_ticks: c.invalid_state as u64,
+            failed_ticks: c.failed as u64,
+            unfiltered_ticks: c.unfiltered as u64,
+            relaxed_ticks: c.relaxed as u64,
+            stopped: (!self.stopped.is_empty()).then_some(self.stopped.as_str()),
+            overruns: None,
+        }
+    }
+}
+
 /// The label of a run's lowest barrier when its state left the model's domain (its lowest
 /// barrier is then `-∞`).
 pub const INVALID_STATE: &str = "invalid state (outside the model's domain)";
@@ -76,36 +106,96 @@ pub enum VerifyError {
     /// The run's draws could not be turned into a scenario.
     #[error("run {run}: {message}")]
     Run { run: usize, message: String },
-    /// The thread pool could not be built.
+    /// A worker thread could not be started.
     #[error("threads: {0}")]
     Threads(String),
+    /// A finished run could not be written.
+    #[error("{0}")]
+    Output(String),
 }
 
-/// Runs `runs` (indices of `spec`'s batch) on `model` with `threads` worker threads (0:
-/// one per core), calling `progress(done, total)` from the workers as runs finish. Rows
-/// come back in index order, whatever the thread count.
+/// How a batch's slice ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BatchEnd {
+    /// Runs finished and given to the sink, from the slice's first on.
+    pub finished: usize,
+    /// Whether `stop` ended it before its last run.
+    pub interrupted: bool,
+}
+
+/// Runs `runs` (indices of `spec`'s batch) on `model` with `threads` worker threads (at
+/// least one, at most one per run), each taking the next index in order, and gives every
+/// finished run to `sink` on the calling thread in index order, as soon as the runs before
+/// it have finished. Once `stop` is set no run starts, the runs under way finish and are
+/// given to `sink`, so the runs given are always the first of the slice. A run that cannot
+/// be made, or a `sink` that fails, ends the batch the same way with its error.
 pub fn run_batch(
     model: &Model,
     spec: &VerifySpec,
     runs: std::ops::Range<usize>,
     threads: usize,
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<Vec<Finished>, VerifyError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| VerifyError::Threads(e.to_string()))?;
-    let total = runs.len();
-    let done = AtomicUsize::new(0);
-    pool.install(|| {
-        runs.into_par_iter()
-            .map(|run| {
-                let finished = run_one(model, spec, run);
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(n, total);
-                finished
-            })
-            .collect()
+    stop: &AtomicBool,
+    sink: &mut dyn FnMut(Finished) -> Result<(), String>,
+) -> Result<BatchEnd, VerifyError> {
+    let threads = threads.clamp(1, runs.len().max(1));
+    let next = AtomicUsize::new(runs.start);
+    let failed = AtomicBool::new(false);
+    let (tx, rx) = mpsc::channel::<Result<Finished, VerifyError>>();
+    let mut error = None;
+    let mut given = 0;
+    std::thread::scope(|scope| -> Result<(), VerifyError> {
+        for k in 0..threads {
+            let tx = tx.clone();
+            let (next, failed, end) = (&next, &failed, runs.end);
+            std::thread::Builder::new()
+                .name(format!("verify-{k}"))
+                .spawn_scoped(scope, move || {
+                    while !stop.load(Ordering::SeqCst) && !failed.load(Ordering::SeqCst) {
+                        let run = next.fetch_add(1, Ordering::SeqCst);
+                        if run >= end {
+                            break;
+                        }
+                        if tx.send(run_one(model, spec, run)).is_err() {
+                            break;
+                        }
+                    }
+                })
+                .map_err(|e| VerifyError::Threads(e.to_string()))?;
+        }
+        drop(tx);
+        // Runs that finished before an earlier one, held until it has.
+        let mut waiting = BTreeMap::new();
+        let mut expected = runs.start;
+        for finished in rx {
+            match finished {
+                Ok(finished) => {
+                    waiting.insert(finished.row.run, finished);
+                }
+                Err(e) => {
+                    failed.store(true, Ordering::SeqCst);
+                    error.get_or_insert(e);
+                }
+            }
+            while error.is_none()
+                && let Some(finished) = waiting.remove(&expected)
+            {
+                if let Err(message) = sink(finished) {
+                    failed.store(true, Ordering::SeqCst);
+                    error = Some(VerifyError::Output(message));
+                    break;
+                }
+                expected += 1;
+                given += 1;
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(error) = error {
+        return Err(error);
+    }
+    Ok(BatchEnd {
+        finished: given,
+        interrupted: given < runs.len(),
     })
 }
 
@@ -145,7 +235,7 @@ pub fn evaluate(
             let s = &result.summary;
             // A state outside the model's domain has no barrier values (the record holds
             // NaN there, which the lowest skips): the run is counted as the lowest of all.
-            let (lowest_barrier, lowest_label) = if s.counts.invalid_state > 0 {
+            let (lowest_barrier, lowest_label) = if s.counts.invalid_state + s.invalid_rows > 0 {
                 (f64::NEG_INFINITY, INVALID_STATE.to_string())
             } else {
                 (s.min_barrier.value, s.min_barrier.label.to_string())

@@ -4,6 +4,7 @@
 
 use serde::Serialize;
 
+use crate::verdict::{Limits, judge};
 use crate::verify::RunRow;
 use crate::verify::table::Batch;
 
@@ -30,7 +31,7 @@ pub struct GroupReport {
     /// Runs in the group.
     pub runs: usize,
     /// Unsafe runs ([`is_unsafe`]: lowest barrier below the threshold, state outside the
-    /// model's domain, or stopped early), and their fraction.
+    /// model's domain, a failed QP, or stopped early), and their fraction.
     pub unsafe_runs: usize,
     pub unsafe_fraction: f64,
     /// Of those, runs whose set point lay inside the safe set (the filter had a safe
@@ -98,10 +99,11 @@ pub fn quantiles(values: impl Iterator<Item = f64>) -> Option<Quantiles> {
     })
 }
 
-/// Whether a run is unsafe: its lowest barrier below `threshold` (or not a number, or
-/// its state left the model's domain), or the run stopped early.
+/// Whether a run is unsafe: the verdict on its row ([`crate::verdict::judge`]) is not
+/// safe: its lowest barrier below `threshold` (or not a number, or its state left the
+/// model's domain), ticks without a verified command, or the run stopped early.
 pub fn is_unsafe(row: &RunRow, threshold: f64) -> bool {
-    row.lowest_barrier.is_nan() || row.lowest_barrier < threshold || !row.stopped.is_empty()
+    !judge(&row.outcome(), &Limits::new(threshold)).is_safe()
 }
 
 fn group_report(name: String, rows: &[&RunRow], threshold: f64) -> GroupReport {

@@ -46,8 +46,10 @@ pub const DEFAULT_RUNS: usize = 1000;
 /// Default time between the rows the lowest barrier is taken over \[s\]: every
 /// millisecond, and at every tick of a faster loop.
 pub const DEFAULT_RECORD_PERIOD: f64 = 1e-3;
-/// Default threshold: a run whose lowest barrier falls below it is unsafe (m or rad).
-pub const DEFAULT_THRESHOLD: f64 = -1e-6;
+/// Default threshold: a run whose lowest barrier falls below it is unsafe (m or rad): the
+/// tolerance within which a barrier counts as held at zero, the figures' too
+/// ([`softcbf_description::limits::BARRIER_TOLERANCE_M`]).
+pub const DEFAULT_THRESHOLD: f64 = -softcbf_description::limits::BARRIER_TOLERANCE_M;
 /// Draws of an initial state before giving up on finding one the guarantee covers
 /// ([`StartSet`]).
 pub const INITIAL_STATE_TRIES: usize = 1000;
@@ -162,18 +164,17 @@ impl VerifySpec {
                 .map(|v| c.integer_within(v, &format!("verify.{field}"), limit))
                 .transpose()
         };
-        let runs = match overrides.runs {
-            Some(runs) => runs,
-            None => integer(&raw.runs, "runs", &RUNS)?.map_or(DEFAULT_RUNS, |n| n as usize),
-        };
-        let seed = match overrides.seed {
-            Some(seed) => seed,
-            None => integer(&raw.seed, "seed", &SEED)?.map_or(1, |n| n as u64),
-        };
-        let duration = match overrides.duration {
-            Some(d) => Some(d),
-            None => number(&raw.duration, "duration", &limits::DURATION_S)?,
-        };
+        // Every value of the file is checked, also one the command line replaces.
+        let file_runs = integer(&raw.runs, "runs", &RUNS)?;
+        let file_seed = integer(&raw.seed, "seed", &SEED)?;
+        let file_duration = number(&raw.duration, "duration", &limits::DURATION_S)?;
+        let runs = overrides
+            .runs
+            .unwrap_or_else(|| file_runs.map_or(DEFAULT_RUNS, |n| n as usize));
+        let seed = overrides
+            .seed
+            .unwrap_or_else(|| file_seed.map_or(1, |n| n as u64));
+        let duration = overrides.duration.or(file_duration);
         let record_period = number(
             &raw.record_period,
             "record_period",

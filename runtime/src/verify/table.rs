@@ -136,55 +136,68 @@ fn plain(text: &str) -> String {
         .collect()
 }
 
-/// `runs.csv` for `rows` (in the order given) of a robot with `coordinates` coordinates.
+/// `runs.csv` for `rows` (in the order given) of a robot with `coordinates` coordinates:
+/// [`runs_header`], then a [`run_line`] per row.
 pub fn runs_csv(rows: &[RunRow], coordinates: usize) -> String {
-    let mut text = header(coordinates).join(",");
-    text.push('\n');
+    let mut text = runs_header(coordinates);
     for row in rows {
-        let d = &row.draw;
-        let _ = write!(
-            text,
-            "{},{},{},{:?}",
-            row.run,
-            d.seed,
-            d.safety.name(),
-            d.control_period
-        );
-        for v in d.set_point.iter().chain(&d.initial_q).chain(&d.initial_qd) {
+        text.push_str(&run_line(row));
+    }
+    text
+}
+
+/// The first line of `runs.csv` for `coordinates` coordinates, with its line end.
+pub fn runs_header(coordinates: usize) -> String {
+    header(coordinates).join(",") + "\n"
+}
+
+/// The line of `runs.csv` for `row`, with its line end: a batch appends its rows one by
+/// one as they finish, the same bytes [`runs_csv`] writes.
+pub fn run_line(row: &RunRow) -> String {
+    let mut text = String::new();
+    let d = &row.draw;
+    let _ = write!(
+        text,
+        "{},{},{},{:?}",
+        row.run,
+        d.seed,
+        d.safety.name(),
+        d.control_period
+    );
+    for v in d.set_point.iter().chain(&d.initial_q).chain(&d.initial_qd) {
+        let _ = write!(text, ",{v:?}");
+    }
+    for f in &d.factors {
+        for v in [
+            f.stiffness[0],
+            f.stiffness[1],
+            f.damping[0],
+            f.damping[1],
+            f.mass,
+        ] {
             let _ = write!(text, ",{v:?}");
         }
-        for f in &d.factors {
-            for v in [
-                f.stiffness[0],
-                f.stiffness[1],
-                f.damping[0],
-                f.damping[1],
-                f.mass,
-            ] {
-                let _ = write!(text, ",{v:?}");
-            }
-        }
-        let _ = writeln!(
-            text,
-            ",{},{:?},{:?},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{},{}",
-            d.noise_seed,
-            row.set_point_barrier,
-            row.lowest_barrier,
-            plain(&row.lowest_label),
-            row.lowest_t,
-            row.set_point_error,
-            row.max_abs_tau,
-            row.counts.ticks,
-            row.counts.qp_solves,
-            row.counts.active,
-            row.counts.relaxed,
-            row.counts.failed,
-            row.counts.invalid_state,
-            row.counts.uncertified,
-            row.integrator_steps,
-            plain(&row.stopped),
-        );
     }
+    let _ = writeln!(
+        text,
+        ",{},{:?},{:?},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{},{}",
+        d.noise_seed,
+        row.set_point_barrier,
+        row.lowest_barrier,
+        plain(&row.lowest_label),
+        row.lowest_t,
+        row.set_point_error,
+        row.max_abs_tau,
+        row.counts.ticks,
+        row.counts.qp_solves,
+        row.counts.active,
+        row.counts.relaxed,
+        row.counts.failed,
+        row.counts.invalid_state,
+        row.counts.uncertified,
+        row.integrator_steps,
+        plain(&row.stopped),
+    );
     text
 }
 
@@ -320,6 +333,7 @@ pub fn read_runs(
                 failed,
                 invalid_state,
                 uncertified,
+                unfiltered: 0,
             },
             integrator_steps,
             stopped,
@@ -328,14 +342,22 @@ pub fn read_runs(
     Ok(rows)
 }
 
+/// The first line of `timing.csv`, with its line end.
+pub const TIMING_HEADER: &str = "run,wall_time [s]\n";
+
 /// `timing.csv`: each run's wall time \[s\] (differs from machine to machine, so it is kept
 /// out of `runs.csv`).
 pub fn timing_csv(runs: &[(usize, f64)]) -> String {
-    let mut text = String::from("run,wall_time [s]\n");
-    for (run, wall) in runs {
-        let _ = writeln!(text, "{run},{wall:.6}");
+    let mut text = String::from(TIMING_HEADER);
+    for &(run, wall) in runs {
+        text.push_str(&timing_line(run, wall));
     }
     text
+}
+
+/// The line of `timing.csv` for run `run`, `wall` seconds, with its line end.
+pub fn timing_line(run: usize, wall: f64) -> String {
+    format!("{run},{wall:.6}\n")
 }
 
 /// Writes `text` to `path`.
@@ -392,7 +414,7 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Batch, Vec<RunRow>), TableError> {
         {
             return Err(TableError::Merge(format!(
                 "{} should hold runs {}..{} in order (shard.json), it holds {} rows: the \
-                 shard did not finish; run it again",
+                 shard did not finish; run its command again with --resume to finish it",
                 csv.display(),
                 expected.start,
                 expected.end,
@@ -432,19 +454,52 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Batch, Vec<RunRow>), TableError> {
     Ok((batch, rows))
 }
 
-/// The first field in which two batches differ, in words.
-fn difference(a: &Batch, b: &Batch) -> String {
+/// The fields in which two batches differ, in words (`seed 1 vs 2; 100 vs 200 runs`).
+pub fn difference(a: &Batch, b: &Batch) -> String {
+    let mut parts = Vec::new();
+    if a.scenario != b.scenario {
+        parts.push(format!("scenario {} vs {}", a.scenario, b.scenario));
+    }
     if a.fingerprint != b.fingerprint {
-        format!(
-            "scenario or robot files differ: {} vs {}",
-            a.scenario, b.scenario
-        )
-    } else if a.seed != b.seed {
-        format!("seed {} vs {}", a.seed, b.seed)
-    } else if a.runs != b.runs {
-        format!("{} vs {} runs", a.runs, b.runs)
-    } else {
+        parts.push(format!(
+            "the scenario or robot files differ (fingerprint {} vs {})",
+            a.fingerprint, b.fingerprint
+        ));
+    }
+    if a.seed != b.seed {
+        parts.push(format!("seed {} vs {}", a.seed, b.seed));
+    }
+    if a.runs != b.runs {
+        parts.push(format!("{} vs {} runs", a.runs, b.runs));
+    }
+    if a.duration != b.duration {
+        let text = |d: Option<f64>| d.map_or("the scenario's".to_string(), |d| format!("{d} s"));
+        parts.push(format!(
+            "duration {} vs {}",
+            text(a.duration),
+            text(b.duration)
+        ));
+    }
+    if a.threshold != b.threshold {
+        parts.push(format!("threshold {} vs {}", a.threshold, b.threshold));
+    }
+    if a.groups != b.groups {
+        parts.push(format!(
+            "groups {} vs {}",
+            a.groups.join("; "),
+            b.groups.join("; ")
+        ));
+    }
+    if a.coordinates != b.coordinates {
+        parts.push(format!(
+            "{} vs {} coordinates",
+            a.coordinates, b.coordinates
+        ));
+    }
+    if parts.is_empty() {
         "settings differ".into()
+    } else {
+        parts.join("; ")
     }
 }
 
@@ -505,6 +560,7 @@ mod tests {
                 failed: 0,
                 invalid_state: 0,
                 uncertified: 0,
+                unfiltered: 0,
             },
             integrator_steps: 300,
             stopped: String::new(),

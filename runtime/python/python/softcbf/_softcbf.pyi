@@ -11,7 +11,7 @@ __version__: str
 _Vector = Union[npt.NDArray[np.float64], Sequence[float]]
 _Path = Union[str, "os.PathLike[str]"]
 Status = Literal["filtered", "unfiltered", "relaxed", "qp_failed", "invalid_state"]
-Safety = Literal["sampled", "paper", "hold-correction"]
+Safety = Literal["certified", "paper", "hold-correction", "predicted"]
 
 class DescriptionError(ValueError):
     """A robot or scenario file (or dict) that cannot be used."""
@@ -108,7 +108,7 @@ class Controller:
     ) -> None:
         """Gains default to the robot file's, else the paper's (K_P = 5 I, K_D = I,
         p1 = p2 = 10); ``safety`` to the robot file's ``[hardware] safety``, else
-        ``"sampled"`` over a hold of ``control_period`` seconds. Every number is checked
+        ``"certified"`` over a hold of ``control_period`` seconds. Every number is checked
         against the range of its file field (``ValueError``). A robot without a compiled
         model runs on its interpreted one, with a ``RuntimeWarning`` (see ``Robot.model``)."""
     def tick(

@@ -24,11 +24,11 @@ pub mod replay;
 pub mod report;
 pub mod space;
 
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
-use rayon::prelude::*;
 
 use crate::model::Model;
 use crate::verify::draw::{Draw, run_seed};
@@ -162,10 +162,10 @@ pub fn run_search(
     threads: usize,
     progress: &(dyn Fn(Event) + Sync),
 ) -> Result<Vec<Candidate>, VerifyError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| VerifyError::Threads(e.to_string()))?;
+    let threads = match threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    };
     let space = Space::new(model, spec);
     let groups = spec.groups.len();
     let mut searches: Vec<Search> = Vec::new();
@@ -204,18 +204,34 @@ pub fn run_search(
         if jobs.is_empty() {
             break;
         }
-        let done = AtomicUsize::new(0);
-        let rows: Vec<Result<RunRow, VerifyError>> = pool.install(|| {
-            jobs.par_iter()
-                .map(|(s, k, _, draw)| {
-                    let run = searches[*s].spent + k;
-                    let row = evaluate(model, spec, run, draw.clone()).map(|f| f.row);
-                    done.fetch_add(1, Ordering::Relaxed);
-                    progress(Event::Run);
-                    row
-                })
-                .collect()
+        // The generation on worker threads, each taking the next candidate in turn.
+        let next = AtomicUsize::new(0);
+        let slots: Vec<Mutex<Option<Result<RunRow, VerifyError>>>> =
+            jobs.iter().map(|_| Mutex::new(None)).collect();
+        std::thread::scope(|scope| {
+            for _ in 0..threads.min(jobs.len()).max(1) {
+                scope.spawn(|| {
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some((s, k, _, draw)) = jobs.get(i) else {
+                            break;
+                        };
+                        let run = searches[*s].spent + k;
+                        let row = evaluate(model, spec, run, draw.clone()).map(|f| f.row);
+                        progress(Event::Run);
+                        *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(row);
+                    }
+                });
+            }
         });
+        let rows: Vec<Result<RunRow, VerifyError>> = slots
+            .into_iter()
+            .map(|slot| {
+                slot.into_inner()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .unwrap_or_else(|| Err(VerifyError::Threads("a worker thread stopped".into())))
+            })
+            .collect();
         let mut scored: Vec<Vec<Scored>> = vec![Vec::new(); searches.len()];
         for ((s, k, x, _), row) in jobs.into_iter().zip(rows) {
             let row = row?;
