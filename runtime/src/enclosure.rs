@@ -13,6 +13,10 @@
 //! Units: `q` \[m\], `q̇` \[m/s\] boxes of `nq = 3n` entries; `M` \[kg\] row-major `nq × nq`;
 //! forces \[N\].
 
+// The recursions below index the modules' frames, forces and matrices in step with one
+// index, as their formulas do.
+#![allow(clippy::needless_range_loop)]
+
 use std::ops::{Add, AddAssign, Mul, Neg, Sub};
 
 use softcbf_generated::{Dual, Interval};

@@ -193,7 +193,8 @@ impl Interval {
     /// Invalid if the whole interval is below zero.
     #[inline]
     pub fn sqrt(self) -> Interval {
-        if !(self.hi >= 0.0) {
+        // `hi` below zero or NaN: nothing to take a root of.
+        if self.hi.is_nan() || self.hi < 0.0 {
             return Interval::NAN;
         }
         let lo = self.lo.max(0.0);
@@ -250,7 +251,7 @@ impl Interval {
             n => {
                 let mut out = self;
                 for _ in 1..n {
-                    out = out * self;
+                    out *= self;
                 }
                 out
             }
@@ -317,6 +318,9 @@ impl Mul for Interval {
 impl Div for Interval {
     type Output = Interval;
     #[inline]
+    // Division is multiplication by the enclosure of the reciprocal (outward rounded both
+    // times, so the quotient's enclosure holds).
+    #[allow(clippy::suspicious_arithmetic_impl)]
     fn div(self, other: Interval) -> Interval {
         self * other.recip()
     }
@@ -421,6 +425,8 @@ impl Div<f64> for Interval {
 impl Div<Interval> for f64 {
     type Output = Interval;
     #[inline]
+    // As for `Interval / Interval`: times the reciprocal's enclosure.
+    #[allow(clippy::suspicious_arithmetic_impl)]
     fn div(self, x: Interval) -> Interval {
         x.recip() * self
     }
@@ -617,7 +623,7 @@ impl Dual {
             n => {
                 let mut out = self;
                 for _ in 1..n {
-                    out = out * self;
+                    out *= self;
                 }
                 out
             }

@@ -42,6 +42,7 @@ fn status_name<'py>(py: Python<'py>, status: TickStatus) -> &'py Bound<'py, PySt
         TickStatus::Relaxed => intern!(py, "relaxed"),
         TickStatus::QpFailed => intern!(py, "qp_failed"),
         TickStatus::InvalidState(_) => intern!(py, "invalid_state"),
+        TickStatus::Uncertified(_) => intern!(py, "uncertified"),
     }
 }
 

@@ -17,14 +17,20 @@
 //! in which only the linear model's velocity and acceleration appear. In the plant's metric
 //! `E = ½ ξ̇ᵀ M_p ξ̇ + ½ ξᵀ K ξ` the skew-symmetry of `Ṁ_p − 2 C_p` leaves
 //! `Ė ≤ ξ̇ᵀF − (1 − κ) ξ̇ᵀ D ξ̇` (`κ` bounds `½ |ξ̇ᵀ Ṁ_p(ė_L) ξ̇|` by the damping), so
-//! `∫ ξ̇ᵀ D′ ξ̇ ≤ Φ = ∫ Σ F̄_i²/D′_i` and `|ξ_i(t)| ≤ min(√(t Φ(t)/D′_i), √(2 Φ(t)/K_i))`: no
-//! inverse mass matrix and no acceleration of the plant enters. `F̄` comes from jets of `g`
+//! `∫ ξ̇ᵀ D′ ξ̇ ≤ Φ = ∫ Σ F̄_i²/D′_i` and `|ξ_i(t)| ≤ min(√(t Φ(t)/D′_i), √(2 Φ(t)/K_i))`;
+//! where a floor `λ` of the smallest eigenvalue of `S⁻¹ M_p S⁻¹` (`S = diag √M₀ᵢᵢ`) is known
+//! over the tube, also `|ξ_i(t)| ≤ 1/(Sᵢ λ) ∫₀ᵗ (t − s) ‖S⁻¹F̄(s)‖ ds` (short holds). No
+//! acceleration of the plant enters. `F̄` comes from jets of `g`
 //! over groups of cells ([`crate::enclosure::enclose_mismatch`]): its rate along the hold
 //! (times the cell's length) and its change across the spread of the commands and of `ξ`.
 //! The tube of positions the jets range over is the prediction widened by `|ξ|`: a fixed
 //! point, checked. Each barrier along the predicted motion is bounded at the samples (Taylor
 //! with the Jacobian's enclosure) and between them (`h²/8 sup |b̈|`), and the true barrier
 //! differs from it by at most `|J| |ξ|`.
+
+// The bounds below walk several row-major matrices and per-cell arrays in step with one
+// index; iterator chains over four or five of them would hide the formulas.
+#![allow(clippy::needless_range_loop)]
 
 use std::ops::Range;
 

@@ -10,7 +10,7 @@ __version__: str
 
 _Vector = Union[npt.NDArray[np.float64], Sequence[float]]
 _Path = Union[str, "os.PathLike[str]"]
-Status = Literal["filtered", "unfiltered", "relaxed", "qp_failed", "invalid_state"]
+Status = Literal["filtered", "unfiltered", "relaxed", "qp_failed", "invalid_state", "uncertified"]
 Safety = Literal["certified", "paper", "hold-correction", "predicted"]
 
 class DescriptionError(ValueError):
@@ -121,8 +121,10 @@ class Controller:
         out: Optional[npt.NDArray[np.float64]] = None,
     ) -> Tuple[npt.NDArray[np.float64], Status]:
         """One control tick: ``(tau, status)``. A NaN or out-of-domain state gives the safe
-        command (zero) with status ``"invalid_state"``; wrong shapes or dtypes raise. With
-        ``out``, ``tau`` is written there and returned."""
+        command (zero) with status ``"invalid_state"``; a set point outside the model's
+        domain, wrong shapes or dtypes raise. With the certified rows, a tick whose bound
+        over the hold did not close has status ``"uncertified"`` (its command is the
+        predicted rows'). With ``out``, ``tau`` is written there and returned."""
     @property
     def invalid_reason(self) -> Optional[str]:
         """Why the last tick's state was invalid, or None."""
