@@ -8,8 +8,11 @@
 //   barrier_terms: 400 (136, 244, 18, 0, 2)
 //   joint_terms: 412 (152, 248, 10, 0, 2)
 //   model_terms: 754 (278, 456, 18, 0, 2)
+//   barrier_terms_interval: 400 (136, 244, 18, 0, 2)
+//   joint_terms_interval: 412 (152, 248, 10, 0, 2)
+//   joint_terms_dual: 412 (152, 248, 10, 0, 2)
 
-use crate::{BarrierInfo, BarrierKind, Point};
+use crate::{BarrierInfo, BarrierKind, Dual, Interval, Point};
 /// Number of modules.
 pub const N_MODULES: usize = 2;
 /// Number of generalized coordinates (3 per module).
@@ -467,6 +470,383 @@ pub fn pcc_fs_fc_2(u: f64) -> ([f64; 3], [f64; 3]) {
         };
         ([fs0, fs1, fs2], [fc0, fc1, fc2])
     }
+}
+/// `([f_s, f_s', …], [f_c, f_c', …])` at `u = θ²` up to derivative order 3: series below the switch points [0.09375, 6.0, 12.0, 24.0], closed forms above.
+#[inline]
+pub fn pcc_fs_fc_3(u: f64) -> ([f64; 4], [f64; 4]) {
+    if u < 0.09375 {
+        let w = u * 8.0;
+        let w2 = w * w;
+        (
+            [
+                (1.0
+                    + w2
+                        * (0.00013020833333333333
+                            + w2
+                                * (0.0000000006727861138668431
+                                    + w2 * (0.0000000000000006126039061287542))))
+                    - w
+                        * (0.020833333333333332
+                            + w2
+                                * (0.0000003875248015873016
+                                    + w2 * (0.0000000000007645296748486853))),
+                w
+                    * (0.0020833333333333333
+                        + w2
+                            * (0.00000002152915564373898
+                                + w2 * (0.0000000000000294049874941802)))
+                    - (0.16666666666666666
+                        + w2
+                            * (0.000009300595238095239
+                                + w2
+                                    * (0.00000000003058118699394741
+                                        + w2 * (0.000000000000000020420130204291807)))),
+                (0.016666666666666666
+                    + w2
+                        * (0.0000005166997354497355
+                            + w2
+                                * (0.0000000000011761994997672081
+                                    + w2 * (0.000000000000000000600592064832112))))
+                    - w
+                        * (0.00014880952380952382
+                            + w2
+                                * (0.000000000978597983806317
+                                    + w2 * (0.0000000000000009801662498060067))),
+                w
+                    * (0.000008267195767195768
+                        + w2
+                            * (0.00000000003763838399255066
+                                + w2 * (0.000000000000000028828419111941376)))
+                    - (0.0011904761904761906
+                        + w2
+                            * (0.00000002348635161135161
+                                + w2
+                                    * (0.00000000000003920664999224027
+                                        + w2 * (0.000000000000000000015805054337687158)))),
+            ],
+            [
+                (0.5
+                    + w2
+                        * (0.00002170138888888889
+                            + w2
+                                * (0.0000000000672786113866843
+                                    + w2 * (0.000000000000000043757421866339586))))
+                    - w
+                        * (0.005208333333333333
+                            + w2
+                                * (0.0000000484406001984127
+                                    + w2 * (0.00000000000006371080623739044))),
+                w
+                    * (0.00034722222222222224
+                        + w2
+                            * (0.0000000021529155643738975
+                                + w2 * (0.0000000000000021003562495843002)))
+                    - (0.041666666666666664
+                        + w2
+                            * (0.0000011625744047619049
+                                + w2
+                                    * (0.0000000000025484322494956177
+                                        + w2 * (0.000000000000000001276258137768238)))),
+                (0.002777777777777778
+                    + w2
+                        * (0.00000005166997354497355
+                            + w2
+                                * (0.000000000000084014249983372
+                                    + w2 * (0.000000000000000000033366225824006224))))
+                    - w
+                        * (0.000018601190476190478
+                            + w2
+                                * (0.00000000008154983198385977
+                                    + w2 * (0.00000000000000006126039061287542))),
+                w
+                    * (0.0000008267195767195768
+                        + w2
+                            * (0.000000000002688455999467904
+                                + w2 * (0.0000000000000000016015788395522986)))
+                    - (0.00014880952380952382
+                        + w2
+                            * (0.000000001957195967612634
+                                + w2
+                                    * (0.0000000000000024504156245150167
+                                        + w2 * (0.0000000000000000000007902527168843578)))),
+            ],
+        )
+    } else {
+        let t = u.sqrt();
+        let (sn, cs) = t.sin_cos();
+        let inv = 1.0 / u;
+        let fs0 = sn / t;
+        let fc0 = (1.0 - cs) * inv;
+        let (fs1, fc1) = if u < 6.0 {
+            let w = u * 0.125;
+            let w2 = w * w;
+            (
+                w
+                    * (0.13333333333333333
+                        + w2
+                            * (0.005643738977072311
+                                + w2
+                                    * (0.00003157336490669824
+                                        + w2
+                                            * (0.00000004716842563092174
+                                                + w2
+                                                    * (0.00000000002627035679806279
+                                                        + w2 * (0.000000000000006645465751288611))))))
+                    - (0.16666666666666666
+                        + w2
+                            * (0.0380952380952381
+                                + w2
+                                    * (0.0005130671797338464
+                                        + w2
+                                            * (0.0000014032606625199217
+                                                + w2
+                                                    * (0.0000000012412743587084668
+                                                        + w2
+                                                            * (0.000000000000456875770401092
+                                                                + w2 * (0.00000000000000008204278705294582))))))),
+                w
+                    * (0.022222222222222223
+                        + w2
+                            * (0.000564373897707231
+                                + w2
+                                    * (0.0000022552403504784458
+                                        + w2
+                                            * (0.000000002620468090606763
+                                                + w2
+                                                    * (0.0000000000011941071271846723
+                                                        + w2 * (0.0000000000000002555948365880235))))))
+                    - (0.041666666666666664
+                        + w2
+                            * (0.004761904761904762
+                                + w2
+                                    * (0.00004275559831115387
+                                        + w2
+                                            * (0.00000008770379140749511
+                                                + w2
+                                                    * (0.00000000006206371793542334
+                                                        + w2
+                                                            * (0.000000000000019036490433378833
+                                                                + w2 * (0.0000000000000000029300995376052075))))))),
+            )
+        } else {
+            ((cs - fs0) * (0.5 * inv), (0.5 * fs0 - fc0) * inv)
+        };
+        let (fs2, fc2) = if u < 12.0 {
+            let w = u * 0.0625;
+            let w2 = w * w;
+            (
+                (0.016666666666666666
+                    + w2
+                        * (0.008465608465608466
+                            + w2
+                                * (0.0003157336490669824
+                                    + w2
+                                        * (0.0000026414318353316174
+                                            + w2
+                                                * (0.000000007565862757842084
+                                                    + w2
+                                                        * (0.000000000009356815777814364
+                                                            + w2
+                                                                * (0.000000000000005793918202911484
+                                                                    + w2 * (0.0000000000000000019916146487186738))))))))
+                    - w
+                        * (0.01904761904761905
+                            + w2
+                                * (0.0020522687189353855
+                                    + w2
+                                        * (0.00003367825590047812
+                                            + w2
+                                                * (0.00000015888311791468376
+                                                    + w2
+                                                        * (0.0000000002924004930566989
+                                                            + w2
+                                                                * (0.0000000000002520354418266495
+                                                                    + w2 * (0.0000000000000001150157459635034))))))),
+                (0.002777777777777778
+                    + w2
+                        * (0.0008465608465608466
+                            + w2
+                                * (0.000022552403504784456
+                                    + w2
+                                        * (0.00000014674621307397876
+                                            + w2
+                                                * (0.0000000003439028526291856
+                                                    + w2
+                                                        * (0.00000000000035987752991593707
+                                                            + w2 * (0.00000000000000019313060676371612)))))))
+                    - w
+                        * (0.002380952380952381
+                            + w2
+                                * (0.00017102239324461548
+                                    + w2
+                                        * (0.0000021048909937798825
+                                            + w2
+                                                * (0.000000007944155895734188
+                                                    + w2
+                                                        * (0.000000000012183353877362454
+                                                            + w2
+                                                                * (0.000000000000009001265779523199
+                                                                    + w2 * (0.000000000000000003594242061359481))))))),
+            )
+        } else {
+            ((-(0.5 * fs0) - 3.0 * fs1) * (0.5 * inv), (0.5 * fs1 - 2.0 * fc1) * inv)
+        };
+        let (fs3, fc3) = if u < 24.0 {
+            let w = u * 0.03125;
+            let w2 = w * w;
+            (
+                w
+                    * (0.0021164021164021165
+                        + w2
+                            * (0.0006314672981339648
+                                + w2
+                                    * (0.00003169718202397941
+                                        + w2
+                                            * (0.0000004842152165018934
+                                                + w2
+                                                    * (0.0000000029941810489005967
+                                                        + w2
+                                                            * (0.000000000008899458359672039
+                                                                + w2
+                                                                    * (0.000000000000014275893802015452
+                                                                        + w2 * (0.000000000000000013438605674998919))))))))
+                    - (0.0011904761904761906
+                        + w2
+                            * (0.0015392015392015391
+                                + w2
+                                    * (0.0001683912795023906
+                                        + w2
+                                            * (0.000004448727301611145
+                                                + w2
+                                                    * (0.00000004210567100016464
+                                                        + w2
+                                                            * (0.0000000001774329510459613
+                                                                + w2
+                                                                    * (0.0000000000003827724025665393
+                                                                        + w2
+                                                                            * (0.000000000000000466151634351525
+                                                                                + w2 * (0.00000000000000000034457963269227996))))))))),
+                w
+                    * (0.00021164021164021165
+                        + w2
+                            * (0.00004510480700956891
+                                + w2
+                                    * (0.000001760954556887745
+                                        + w2
+                                            * (0.00000002200978256826788
+                                                + w2
+                                                    * (0.00000000011516080957309987
+                                                        + w2
+                                                            * (0.00000000000029664861198906795
+                                                                + w2
+                                                                    * (0.0000000000000004198792294710427
+                                                                        + w2 * (0.0000000000000000003536475177631294))))))))
+                    - (0.00014880952380952382
+                        + w2
+                            * (0.0001282667949334616
+                                + w2
+                                    * (0.000010524454968899413
+                                        + w2
+                                            * (0.00000022243636508055725
+                                                + w2
+                                                    * (0.0000000017544029583401933
+                                                        + w2
+                                                            * (0.000000000006336891108784331
+                                                                + w2
+                                                                    * (0.000000000000011961637580204353
+                                                                        + w2 * (0.000000000000000012948656509764583)))))))),
+            )
+        } else {
+            ((-(0.5 * fs1) - 5.0 * fs2) * (0.5 * inv), (0.5 * fs2 - 3.0 * fc2) * inv)
+        };
+        ([fs0, fs1, fs2, fs3], [fc0, fc1, fc2, fc3])
+    }
+}
+/// Enclosures of `[f_s, …, f_s^(2)]`, `[f_c, …, f_c^(2)]` over `u ≥ 0` in the interval `u` (mean-value form around the midpoint with the global derivative bounds `|f^(j)(u)| ≤ |f^(j)(0)|`).
+pub fn pcc_fs_fc_2_interval(u: Interval) -> ([Interval; 3], [Interval; 3]) {
+    const S0: [f64; 4] = [
+        1.0,
+        0.16666666666666666,
+        0.016666666666666666,
+        0.0011904761904761904,
+    ];
+    const C0: [f64; 4] = [
+        0.5,
+        0.041666666666666664,
+        0.002777777777777778,
+        0.0001488095238095238,
+    ];
+    if !u.is_valid() || u.hi() < 0.0 {
+        return ([Interval::NAN; 3], [Interval::NAN; 3]);
+    }
+    if !u.hi().is_finite() {
+        let whole = |j: usize, b: &[f64]| Interval::new(-b[j], b[j]);
+        return (
+            std::array::from_fn(|j| whole(j, &S0)),
+            std::array::from_fn(|j| whole(j, &C0)),
+        );
+    }
+    let range = Interval::new(u.lo().max(0.0), u.hi());
+    let (m, r) = (range.mid(), range.rad());
+    let (fs, fc) = pcc_fs_fc_2(m);
+    let enclose = |value: f64, j: usize, b: &[f64]| {
+        let slack = b[j + 1] * r + 0.00000000000002 * value.abs()
+            + 0.000000000000002 * b[j];
+        let around = Interval::around(value, slack);
+        Interval::new(around.lo().max(-b[j]), around.hi().min(b[j]))
+    };
+    (
+        std::array::from_fn(|j| enclose(fs[j], j, &S0)),
+        std::array::from_fn(|j| enclose(fc[j], j, &C0)),
+    )
+}
+/// Enclosures of `[f_s, …, f_s^(3)]`, `[f_c, …, f_c^(3)]` over `u ≥ 0` in the interval `u` (mean-value form around the midpoint with the global derivative bounds `|f^(j)(u)| ≤ |f^(j)(0)|`).
+pub fn pcc_fs_fc_3_interval(u: Interval) -> ([Interval; 4], [Interval; 4]) {
+    const S0: [f64; 5] = [
+        1.0,
+        0.16666666666666666,
+        0.016666666666666666,
+        0.0011904761904761904,
+        0.00006613756613756613,
+    ];
+    const C0: [f64; 5] = [
+        0.5,
+        0.041666666666666664,
+        0.002777777777777778,
+        0.0001488095238095238,
+        0.000006613756613756613,
+    ];
+    if !u.is_valid() || u.hi() < 0.0 {
+        return ([Interval::NAN; 4], [Interval::NAN; 4]);
+    }
+    if !u.hi().is_finite() {
+        let whole = |j: usize, b: &[f64]| Interval::new(-b[j], b[j]);
+        return (
+            std::array::from_fn(|j| whole(j, &S0)),
+            std::array::from_fn(|j| whole(j, &C0)),
+        );
+    }
+    let range = Interval::new(u.lo().max(0.0), u.hi());
+    let (m, r) = (range.mid(), range.rad());
+    let (fs, fc) = pcc_fs_fc_3(m);
+    let enclose = |value: f64, j: usize, b: &[f64]| {
+        let slack = b[j + 1] * r + 0.00000000000002 * value.abs()
+            + 0.000000000000002 * b[j];
+        let around = Interval::around(value, slack);
+        Interval::new(around.lo().max(-b[j]), around.hi().min(b[j]))
+    };
+    (
+        std::array::from_fn(|j| enclose(fs[j], j, &S0)),
+        std::array::from_fn(|j| enclose(fc[j], j, &C0)),
+    )
+}
+/// Jets of `[f_s, …, f_s^(2)]`, `[f_c, …, f_c^(2)]` at `u`: values and the chain rule's slopes from the enclosures of order 3.
+pub fn pcc_fs_fc_2_dual(u: Dual) -> ([Dual; 3], [Dual; 3]) {
+    let (s, c) = pcc_fs_fc_3_interval(u.value);
+    (
+        std::array::from_fn(|j| Dual::new(s[j], s[j + 1] * u.slope)),
+        std::array::from_fn(|j| Dual::new(c[j], c[j + 1] * u.slope)),
+    )
 }
 /// Segment transforms `T_i` (4×4, rows): tip coordinates → segment base coordinates.
 pub fn segment_transforms(
@@ -1782,6 +2162,873 @@ pub fn model_terms(
     jacobian[17][4] = -t101 / t55;
     jacobian[17][5] = 0.0;
     jdot_qd[17] = -t111 / t55;
+}
+/// Enclosures of [`barrier_terms`]' outputs over every state in the boxes `q`, `q̇`.
+pub fn barrier_terms_interval(
+    p: &[f64; NP],
+    q: &[Interval; NQ],
+    qd: &[Interval; NQ],
+    barriers: &mut [Interval; NB],
+    jacobian: &mut [[Interval; NQ]; NB],
+    jdot_qd: &mut [Interval; NB],
+) {
+    let rest_length_0 = p[0];
+    let tendon_radius_0 = p[1];
+    let corner_radius_0 = p[2];
+    let corner_cos_0_0 = p[3];
+    let corner_sin_0_0 = p[4];
+    let margin_0_0 = p[5];
+    let corner_cos_0_1 = p[6];
+    let corner_sin_0_1 = p[7];
+    let margin_0_1 = p[8];
+    let corner_cos_0_2 = p[9];
+    let corner_sin_0_2 = p[10];
+    let margin_0_2 = p[11];
+    let corner_cos_0_3 = p[12];
+    let corner_sin_0_3 = p[13];
+    let margin_0_3 = p[14];
+    let corner_cos_0_4 = p[15];
+    let corner_sin_0_4 = p[16];
+    let margin_0_4 = p[17];
+    let corner_cos_0_5 = p[18];
+    let corner_sin_0_5 = p[19];
+    let margin_0_5 = p[20];
+    let rest_length_1 = p[21];
+    let tendon_radius_1 = p[22];
+    let corner_radius_1 = p[23];
+    let corner_cos_1_0 = p[24];
+    let corner_sin_1_0 = p[25];
+    let margin_1_0 = p[26];
+    let corner_cos_1_1 = p[27];
+    let corner_sin_1_1 = p[28];
+    let margin_1_1 = p[29];
+    let corner_cos_1_2 = p[30];
+    let corner_sin_1_2 = p[31];
+    let margin_1_2 = p[32];
+    let corner_cos_1_3 = p[33];
+    let corner_sin_1_3 = p[34];
+    let margin_1_3 = p[35];
+    let corner_cos_1_4 = p[36];
+    let corner_sin_1_4 = p[37];
+    let margin_1_4 = p[38];
+    let corner_cos_1_5 = p[39];
+    let corner_sin_1_5 = p[40];
+    let margin_1_5 = p[41];
+    let elongation_min_0 = p[42];
+    let elongation_max_0 = p[43];
+    let elongation_margin_0 = p[44];
+    let max_bend_0 = p[45];
+    let bend_margin_0 = p[46];
+    let elongation_min_1 = p[47];
+    let elongation_max_1 = p[48];
+    let elongation_margin_1 = p[49];
+    let max_bend_1 = p[50];
+    let bend_margin_1 = p[51];
+    let dx_0 = q[0];
+    let dy_0 = q[1];
+    let dl_0 = q[2];
+    let dx_dot_0 = qd[0];
+    let dy_dot_0 = qd[1];
+    let dl_dot_0 = qd[2];
+    let dx_1 = q[3];
+    let dy_1 = q[4];
+    let dl_1 = q[5];
+    let dx_dot_1 = qd[3];
+    let dy_dot_1 = qd[4];
+    let dl_dot_1 = qd[5];
+    let t0 = dx_0 / tendon_radius_0;
+    let t1 = dy_0 / tendon_radius_0;
+    let t2 = t0 * t0 + t1 * t1;
+    let t3 = rest_length_0 + dl_0;
+    let (fs_0, fc_0) = pcc_fs_fc_2_interval(t2);
+    let t4 = corner_radius_0 * (corner_cos_0_0 * t0 + corner_sin_0_0 * t1);
+    let t5 = t3 - t4;
+    let t6 = corner_radius_0 * (corner_cos_0_1 * t0 + corner_sin_0_1 * t1);
+    let t7 = t3 - t6;
+    let t8 = corner_radius_0 * (corner_cos_0_2 * t0 + corner_sin_0_2 * t1);
+    let t9 = t3 - t8;
+    let t10 = corner_radius_0 * (corner_cos_0_3 * t0 + corner_sin_0_3 * t1);
+    let t11 = t3 - t10;
+    let t12 = corner_radius_0 * (corner_cos_0_4 * t0 + corner_sin_0_4 * t1);
+    let t13 = t3 - t12;
+    let t14 = corner_radius_0 * (corner_cos_0_5 * t0 + corner_sin_0_5 * t1);
+    let t15 = t3 - t14;
+    let t16 = dx_1 / tendon_radius_1;
+    let t17 = dy_1 / tendon_radius_1;
+    let t18 = t16 * t16 + t17 * t17;
+    let t19 = rest_length_1 + dl_1;
+    let (fs_1, fc_1) = pcc_fs_fc_2_interval(t18);
+    let t20 = corner_radius_1 * (corner_cos_1_0 * t16 + corner_sin_1_0 * t17);
+    let t21 = t19 - t20;
+    let t22 = corner_radius_1 * (corner_cos_1_1 * t16 + corner_sin_1_1 * t17);
+    let t23 = t19 - t22;
+    let t24 = corner_radius_1 * (corner_cos_1_2 * t16 + corner_sin_1_2 * t17);
+    let t25 = t19 - t24;
+    let t26 = corner_radius_1 * (corner_cos_1_3 * t16 + corner_sin_1_3 * t17);
+    let t27 = t19 - t26;
+    let t28 = corner_radius_1 * (corner_cos_1_4 * t16 + corner_sin_1_4 * t17);
+    let t29 = t19 - t28;
+    let t30 = corner_radius_1 * (corner_cos_1_5 * t16 + corner_sin_1_5 * t17);
+    let t31 = t19 - t30;
+    let t32 = max_bend_0 - bend_margin_0;
+    let t33 = 2.0 * t32;
+    let t34 = max_bend_1 - bend_margin_1;
+    let t35 = 2.0 * t34;
+    let t36 = 1.0 / tendon_radius_0;
+    let t37 = 2.0 * t1;
+    let t38 = 2.0 * t0;
+    let t39 = t36 * t38;
+    let t40 = t39 * fs_0[1];
+    let t41 = corner_cos_0_0 * t36 * corner_radius_0 * fs_0[0];
+    let t42 = t36 * t37;
+    let t43 = fs_0[1] * t42;
+    let t44 = corner_sin_0_0 * t36 * corner_radius_0 * fs_0[0];
+    let t45 = dy_dot_0 / tendon_radius_0;
+    let t46 = dx_dot_0 / tendon_radius_0;
+    let t47 = corner_radius_0 * (corner_sin_0_0 * t45 + corner_cos_0_0 * t46);
+    let t48 = t37 * t45 + t38 * t46;
+    let t49 = fs_0[1] * t48;
+    let t50 = (dl_dot_0 - t47) * t49;
+    let t51 = 2.0 * t45 * t45;
+    let t52 = 2.0 * t46 * t46 + t51;
+    let t53 = t48 * fs_0[2] * t48 + fs_0[1] * t52;
+    let t54 = corner_cos_0_1 * t36 * corner_radius_0 * fs_0[0];
+    let t55 = corner_sin_0_1 * t36 * corner_radius_0 * fs_0[0];
+    let t56 = corner_radius_0 * (corner_sin_0_1 * t45 + corner_cos_0_1 * t46);
+    let t57 = t49 * (dl_dot_0 - t56);
+    let t58 = corner_cos_0_2 * t36 * corner_radius_0 * fs_0[0];
+    let t59 = corner_sin_0_2 * t36 * corner_radius_0 * fs_0[0];
+    let t60 = corner_radius_0 * (corner_sin_0_2 * t45 + corner_cos_0_2 * t46);
+    let t61 = t49 * (dl_dot_0 - t60);
+    let t62 = corner_cos_0_3 * t36 * corner_radius_0 * fs_0[0];
+    let t63 = corner_sin_0_3 * t36 * corner_radius_0 * fs_0[0];
+    let t64 = corner_radius_0 * (corner_sin_0_3 * t45 + corner_cos_0_3 * t46);
+    let t65 = t49 * (dl_dot_0 - t64);
+    let t66 = corner_cos_0_4 * t36 * corner_radius_0 * fs_0[0];
+    let t67 = corner_sin_0_4 * t36 * corner_radius_0 * fs_0[0];
+    let t68 = corner_radius_0 * (corner_sin_0_4 * t45 + corner_cos_0_4 * t46);
+    let t69 = t49 * (dl_dot_0 - t68);
+    let t70 = corner_cos_0_5 * t36 * corner_radius_0 * fs_0[0];
+    let t71 = corner_sin_0_5 * t36 * corner_radius_0 * fs_0[0];
+    let t72 = corner_radius_0 * (corner_sin_0_5 * t45 + corner_cos_0_5 * t46);
+    let t73 = t49 * (dl_dot_0 - t72);
+    let t74 = 2.0 * t17;
+    let t75 = 2.0 * t16;
+    let t76 = 1.0 / tendon_radius_1;
+    let t77 = t75 * t76;
+    let t78 = fs_1[1] * t77;
+    let t79 = corner_cos_1_0 * t76 * corner_radius_1 * fs_1[0];
+    let t80 = t74 * t76;
+    let t81 = fs_1[1] * t80;
+    let t82 = corner_sin_1_0 * t76 * corner_radius_1 * fs_1[0];
+    let t83 = dy_dot_1 / tendon_radius_1;
+    let t84 = dx_dot_1 / tendon_radius_1;
+    let t85 = corner_radius_1 * (corner_sin_1_0 * t83 + corner_cos_1_0 * t84);
+    let t86 = t74 * t83 + t75 * t84;
+    let t87 = fs_1[1] * t86;
+    let t88 = (dl_dot_1 - t85) * t87;
+    let t89 = 2.0 * t83 * t83;
+    let t90 = 2.0 * t84 * t84 + t89;
+    let t91 = t86 * fs_1[2] * t86 + fs_1[1] * t90;
+    let t92 = corner_cos_1_1 * t76 * corner_radius_1 * fs_1[0];
+    let t93 = corner_sin_1_1 * t76 * corner_radius_1 * fs_1[0];
+    let t94 = corner_radius_1 * (corner_sin_1_1 * t83 + corner_cos_1_1 * t84);
+    let t95 = t87 * (dl_dot_1 - t94);
+    let t96 = corner_cos_1_2 * t76 * corner_radius_1 * fs_1[0];
+    let t97 = corner_sin_1_2 * t76 * corner_radius_1 * fs_1[0];
+    let t98 = corner_radius_1 * (corner_sin_1_2 * t83 + corner_cos_1_2 * t84);
+    let t99 = t87 * (dl_dot_1 - t98);
+    let t100 = corner_cos_1_3 * t76 * corner_radius_1 * fs_1[0];
+    let t101 = corner_sin_1_3 * t76 * corner_radius_1 * fs_1[0];
+    let t102 = corner_radius_1 * (corner_sin_1_3 * t83 + corner_cos_1_3 * t84);
+    let t103 = t87 * (dl_dot_1 - t102);
+    let t104 = corner_cos_1_4 * t76 * corner_radius_1 * fs_1[0];
+    let t105 = corner_sin_1_4 * t76 * corner_radius_1 * fs_1[0];
+    let t106 = corner_radius_1 * (corner_sin_1_4 * t83 + corner_cos_1_4 * t84);
+    let t107 = t87 * (dl_dot_1 - t106);
+    let t108 = corner_cos_1_5 * t76 * corner_radius_1 * fs_1[0];
+    let t109 = corner_sin_1_5 * t76 * corner_radius_1 * fs_1[0];
+    let t110 = corner_radius_1 * (corner_sin_1_5 * t83 + corner_cos_1_5 * t84);
+    let t111 = t87 * (dl_dot_1 - t110);
+    barriers[0] = Interval::from(fs_0[0] * t5 - margin_0_0);
+    jacobian[0][0] = Interval::from(t5 * t40 - t41);
+    jacobian[0][1] = Interval::from(t5 * t43 - t44);
+    jacobian[0][2] = Interval::from(fs_0[0]);
+    jacobian[0][3] = Interval::from(0.0);
+    jacobian[0][4] = Interval::from(0.0);
+    jacobian[0][5] = Interval::from(0.0);
+    jdot_qd[0] = Interval::from(t50 + t5 * t53 + t50);
+    barriers[1] = Interval::from(fs_0[0] * t7 - margin_0_1);
+    jacobian[1][0] = Interval::from(t7 * t40 - t54);
+    jacobian[1][1] = Interval::from(t7 * t43 - t55);
+    jacobian[1][2] = Interval::from(fs_0[0]);
+    jacobian[1][3] = Interval::from(0.0);
+    jacobian[1][4] = Interval::from(0.0);
+    jacobian[1][5] = Interval::from(0.0);
+    jdot_qd[1] = Interval::from(t57 + t7 * t53 + t57);
+    barriers[2] = Interval::from(fs_0[0] * t9 - margin_0_2);
+    jacobian[2][0] = Interval::from(t9 * t40 - t58);
+    jacobian[2][1] = Interval::from(t9 * t43 - t59);
+    jacobian[2][2] = Interval::from(fs_0[0]);
+    jacobian[2][3] = Interval::from(0.0);
+    jacobian[2][4] = Interval::from(0.0);
+    jacobian[2][5] = Interval::from(0.0);
+    jdot_qd[2] = Interval::from(t61 + t9 * t53 + t61);
+    barriers[3] = Interval::from(fs_0[0] * t11 - margin_0_3);
+    jacobian[3][0] = Interval::from(t11 * t40 - t62);
+    jacobian[3][1] = Interval::from(t11 * t43 - t63);
+    jacobian[3][2] = Interval::from(fs_0[0]);
+    jacobian[3][3] = Interval::from(0.0);
+    jacobian[3][4] = Interval::from(0.0);
+    jacobian[3][5] = Interval::from(0.0);
+    jdot_qd[3] = Interval::from(t65 + t11 * t53 + t65);
+    barriers[4] = Interval::from(fs_0[0] * t13 - margin_0_4);
+    jacobian[4][0] = Interval::from(t13 * t40 - t66);
+    jacobian[4][1] = Interval::from(t13 * t43 - t67);
+    jacobian[4][2] = Interval::from(fs_0[0]);
+    jacobian[4][3] = Interval::from(0.0);
+    jacobian[4][4] = Interval::from(0.0);
+    jacobian[4][5] = Interval::from(0.0);
+    jdot_qd[4] = Interval::from(t69 + t13 * t53 + t69);
+    barriers[5] = Interval::from(fs_0[0] * t15 - margin_0_5);
+    jacobian[5][0] = Interval::from(t15 * t40 - t70);
+    jacobian[5][1] = Interval::from(t15 * t43 - t71);
+    jacobian[5][2] = Interval::from(fs_0[0]);
+    jacobian[5][3] = Interval::from(0.0);
+    jacobian[5][4] = Interval::from(0.0);
+    jacobian[5][5] = Interval::from(0.0);
+    jdot_qd[5] = Interval::from(t73 + t15 * t53 + t73);
+    barriers[6] = Interval::from(fs_1[0] * t21 - margin_1_0);
+    jacobian[6][0] = Interval::from(0.0);
+    jacobian[6][1] = Interval::from(0.0);
+    jacobian[6][2] = Interval::from(0.0);
+    jacobian[6][3] = Interval::from(t21 * t78 - t79);
+    jacobian[6][4] = Interval::from(t21 * t81 - t82);
+    jacobian[6][5] = Interval::from(fs_1[0]);
+    jdot_qd[6] = Interval::from(t88 + t21 * t91 + t88);
+    barriers[7] = Interval::from(fs_1[0] * t23 - margin_1_1);
+    jacobian[7][0] = Interval::from(0.0);
+    jacobian[7][1] = Interval::from(0.0);
+    jacobian[7][2] = Interval::from(0.0);
+    jacobian[7][3] = Interval::from(t23 * t78 - t92);
+    jacobian[7][4] = Interval::from(t23 * t81 - t93);
+    jacobian[7][5] = Interval::from(fs_1[0]);
+    jdot_qd[7] = Interval::from(t95 + t23 * t91 + t95);
+    barriers[8] = Interval::from(fs_1[0] * t25 - margin_1_2);
+    jacobian[8][0] = Interval::from(0.0);
+    jacobian[8][1] = Interval::from(0.0);
+    jacobian[8][2] = Interval::from(0.0);
+    jacobian[8][3] = Interval::from(t25 * t78 - t96);
+    jacobian[8][4] = Interval::from(t25 * t81 - t97);
+    jacobian[8][5] = Interval::from(fs_1[0]);
+    jdot_qd[8] = Interval::from(t99 + t25 * t91 + t99);
+    barriers[9] = Interval::from(fs_1[0] * t27 - margin_1_3);
+    jacobian[9][0] = Interval::from(0.0);
+    jacobian[9][1] = Interval::from(0.0);
+    jacobian[9][2] = Interval::from(0.0);
+    jacobian[9][3] = Interval::from(t27 * t78 - t100);
+    jacobian[9][4] = Interval::from(t27 * t81 - t101);
+    jacobian[9][5] = Interval::from(fs_1[0]);
+    jdot_qd[9] = Interval::from(t103 + t27 * t91 + t103);
+    barriers[10] = Interval::from(fs_1[0] * t29 - margin_1_4);
+    jacobian[10][0] = Interval::from(0.0);
+    jacobian[10][1] = Interval::from(0.0);
+    jacobian[10][2] = Interval::from(0.0);
+    jacobian[10][3] = Interval::from(t29 * t78 - t104);
+    jacobian[10][4] = Interval::from(t29 * t81 - t105);
+    jacobian[10][5] = Interval::from(fs_1[0]);
+    jdot_qd[10] = Interval::from(t107 + t29 * t91 + t107);
+    barriers[11] = Interval::from(fs_1[0] * t31 - margin_1_5);
+    jacobian[11][0] = Interval::from(0.0);
+    jacobian[11][1] = Interval::from(0.0);
+    jacobian[11][2] = Interval::from(0.0);
+    jacobian[11][3] = Interval::from(t31 * t78 - t108);
+    jacobian[11][4] = Interval::from(t31 * t81 - t109);
+    jacobian[11][5] = Interval::from(fs_1[0]);
+    jdot_qd[11] = Interval::from(t111 + t31 * t91 + t111);
+    barriers[12] = Interval::from(dl_0 - (elongation_min_0 + elongation_margin_0));
+    jacobian[12][0] = Interval::from(0.0);
+    jacobian[12][1] = Interval::from(0.0);
+    jacobian[12][2] = Interval::from(1.0);
+    jacobian[12][3] = Interval::from(0.0);
+    jacobian[12][4] = Interval::from(0.0);
+    jacobian[12][5] = Interval::from(0.0);
+    jdot_qd[12] = Interval::from(0.0);
+    barriers[13] = Interval::from(elongation_max_0 - elongation_margin_0 - dl_0);
+    jacobian[13][0] = Interval::from(0.0);
+    jacobian[13][1] = Interval::from(0.0);
+    jacobian[13][2] = Interval::from(-1.0);
+    jacobian[13][3] = Interval::from(0.0);
+    jacobian[13][4] = Interval::from(0.0);
+    jacobian[13][5] = Interval::from(0.0);
+    jdot_qd[13] = Interval::from(0.0);
+    barriers[14] = Interval::from((t32 * t32 - t2) / t33);
+    jacobian[14][0] = Interval::from(-t39 / t33);
+    jacobian[14][1] = Interval::from(-t42 / t33);
+    jacobian[14][2] = Interval::from(0.0);
+    jacobian[14][3] = Interval::from(0.0);
+    jacobian[14][4] = Interval::from(0.0);
+    jacobian[14][5] = Interval::from(0.0);
+    jdot_qd[14] = Interval::from(-t52 / t33);
+    barriers[15] = Interval::from(dl_1 - (elongation_min_1 + elongation_margin_1));
+    jacobian[15][0] = Interval::from(0.0);
+    jacobian[15][1] = Interval::from(0.0);
+    jacobian[15][2] = Interval::from(0.0);
+    jacobian[15][3] = Interval::from(0.0);
+    jacobian[15][4] = Interval::from(0.0);
+    jacobian[15][5] = Interval::from(1.0);
+    jdot_qd[15] = Interval::from(0.0);
+    barriers[16] = Interval::from(elongation_max_1 - elongation_margin_1 - dl_1);
+    jacobian[16][0] = Interval::from(0.0);
+    jacobian[16][1] = Interval::from(0.0);
+    jacobian[16][2] = Interval::from(0.0);
+    jacobian[16][3] = Interval::from(0.0);
+    jacobian[16][4] = Interval::from(0.0);
+    jacobian[16][5] = Interval::from(-1.0);
+    jdot_qd[16] = Interval::from(0.0);
+    barriers[17] = Interval::from((t34 * t34 - t18) / t35);
+    jacobian[17][0] = Interval::from(0.0);
+    jacobian[17][1] = Interval::from(0.0);
+    jacobian[17][2] = Interval::from(0.0);
+    jacobian[17][3] = Interval::from(-t77 / t35);
+    jacobian[17][4] = Interval::from(-t80 / t35);
+    jacobian[17][5] = Interval::from(0.0);
+    jdot_qd[17] = Interval::from(-t90 / t35);
+}
+/// Enclosures of [`joint_terms`]' outputs over every state in the boxes `q`, `q̇`.
+pub fn joint_terms_interval(
+    p: &[f64; NP],
+    q: &[Interval; NQ],
+    qd: &[Interval; NQ],
+    rotation: &mut [[[Interval; 3]; 3]; N_MODULES],
+    translation: &mut [[Interval; 3]; N_MODULES],
+    motion_subspace: &mut [[[Interval; 3]; 6]; N_MODULES],
+    bias_acceleration: &mut [[Interval; 6]; N_MODULES],
+) {
+    let rest_length_0 = p[0];
+    let tendon_radius_0 = p[1];
+    let rest_length_1 = p[21];
+    let tendon_radius_1 = p[22];
+    let dx_0 = q[0];
+    let dy_0 = q[1];
+    let dl_0 = q[2];
+    let dx_dot_0 = qd[0];
+    let dy_dot_0 = qd[1];
+    let dl_dot_0 = qd[2];
+    let dx_1 = q[3];
+    let dy_1 = q[4];
+    let dl_1 = q[5];
+    let dx_dot_1 = qd[3];
+    let dy_dot_1 = qd[4];
+    let dl_dot_1 = qd[5];
+    let t0 = dx_0 / tendon_radius_0;
+    let t1 = dy_0 / tendon_radius_0;
+    let t2 = t0 * t0;
+    let t3 = t1 * t1;
+    let t4 = t2 + t3;
+    let t5 = rest_length_0 + dl_0;
+    let (fs_0, fc_0) = pcc_fs_fc_2_interval(t4);
+    let t6 = t0 * fc_0[0];
+    let t7 = t1 * fc_0[0];
+    let t8 = t0 * fs_0[0];
+    let t9 = t1 * fs_0[0];
+    let t10 = -t0 * t7;
+    let t11 = t5 * t6;
+    let t12 = t5 * t7;
+    let t13 = t5 * fs_0[0];
+    let t14 = dx_1 / tendon_radius_1;
+    let t15 = dy_1 / tendon_radius_1;
+    let t16 = t14 * t14;
+    let t17 = t15 * t15;
+    let t18 = t16 + t17;
+    let t19 = rest_length_1 + dl_1;
+    let (fs_1, fc_1) = pcc_fs_fc_2_interval(t18);
+    let t20 = t14 * fc_1[0];
+    let t21 = t15 * fc_1[0];
+    let t22 = t14 * fs_1[0];
+    let t23 = t15 * fs_1[0];
+    let t24 = -t14 * t21;
+    let t25 = t19 * t20;
+    let t26 = t19 * t21;
+    let t27 = t19 * fs_1[0];
+    let t28 = 1.0 / tendon_radius_0;
+    let t29 = 2.0 * t1;
+    let t30 = 2.0 * t0;
+    let t31 = t28 * t30;
+    let t32 = t28 * t29;
+    let t33 = dy_dot_0 / tendon_radius_0;
+    let t34 = dx_dot_0 / tendon_radius_0;
+    let t35 = t29 * t33 + t30 * t34;
+    let t36 = fs_0[1] * t35;
+    let t37 = 2.0 * t33 * t33;
+    let t38 = 2.0 * t34 * t34 + t37;
+    let t39 = t35 * fs_0[2];
+    let t40 = 2.0 * t15;
+    let t41 = 2.0 * t14;
+    let t42 = 1.0 / tendon_radius_1;
+    let t43 = t41 * t42;
+    let t44 = t40 * t42;
+    let t45 = dy_dot_1 / tendon_radius_1;
+    let t46 = dx_dot_1 / tendon_radius_1;
+    let t47 = t40 * t45 + t41 * t46;
+    let t48 = fs_1[1] * t47;
+    let t49 = 2.0 * t45 * t45;
+    let t50 = 2.0 * t46 * t46 + t49;
+    let t51 = t47 * fs_1[2];
+    let t52 = fc_0[0] + 2.0 * fs_0[1];
+    let t53 = t0 * t34 + t1 * t33;
+    let t54 = t52 * t53;
+    let t55 = t1 * t34 - t0 * t33;
+    let t56 = fs_0[0] * t33 + t1 * t54;
+    let t57 = fs_0[0] * t34 + t0 * t54;
+    let t58 = fc_0[0] * t55;
+    let t59 = t35 * fc_0[1];
+    let t60 = fc_0[0] * t34 + t0 * t59;
+    let t61 = dl_dot_0 * t6 + t5 * t60;
+    let t62 = fc_0[0] * t33 + t1 * t59;
+    let t63 = dl_dot_0 * t7 + t5 * t62;
+    let t64 = dl_dot_0 * fs_0[0] + t5 * t36;
+    let t65 = t0 * t28;
+    let t66 = t52 * t65;
+    let t67 = t1 * t66;
+    let t68 = t1 * t28;
+    let t69 = t52 * t68;
+    let t70 = fs_0[0] * t28;
+    let t71 = t1 * t69 + t70;
+    let t72 = t70 + t0 * t66;
+    let t73 = t0 * t69;
+    let t74 = fc_0[0] * t68;
+    let t75 = fc_0[0] * t65;
+    let t76 = t31 * fc_0[1];
+    let t77 = fc_0[0] * t28;
+    let t78 = t12 * t74 + t13 * t72;
+    let t79 = t32 * fc_0[1];
+    let t80 = t13 * t73 - t12 * t75;
+    let t81 = t1 * t76 * t5;
+    let t82 = t11 * t74 - t13 * t67 + t81;
+    let t83 = t5 * (t77 + t1 * t79);
+    let t84 = t83 - (t13 * t71 + t11 * t75);
+    let t85 = t31 * fs_0[1] * t5;
+    let t86 = fs_0[1] * t32 * t5;
+    let t87 = t52 * (t33 * t33 + t34 * t34);
+    let t88 = t53 * (t59 + 2.0 * t39) + t87;
+    let t89 = t33 * t36;
+    let t90 = t33 * t54 + t1 * t88 + t89;
+    let t91 = t34 * t36;
+    let t92 = t34 * t54 + t0 * t88 + t91;
+    let t93 = t55 * t59;
+    let t94 = t38 * fc_0[1] + t35 * fc_0[2] * t35;
+    let t95 = t34 * t59;
+    let t96 = dl_dot_0 * t60;
+    let t97 = t5 * (t95 + t0 * t94 + t95);
+    let t98 = t57 * t64 + t13 * t92;
+    let t99 = t58 * t63 + t12 * t93 + t98;
+    let t100 = t58 * t61 + t11 * t93;
+    let t101 = t100 - (t56 * t64 + t13 * t90);
+    let t102 = t33 * t59;
+    let t103 = dl_dot_0 * t62;
+    let t104 = t5 * (t102 + t1 * t94 + t102);
+    let t105 = t56 * t63 + t12 * t90;
+    let t106 = t57 * t61 + t11 * t92 + t105;
+    let t107 = dl_dot_0 * t36;
+    let t108 = t5 * (t35 * t39 + fs_0[1] * t38);
+    let t109 = fc_1[0] + 2.0 * fs_1[1];
+    let t110 = t14 * t46 + t15 * t45;
+    let t111 = t109 * t110;
+    let t112 = t15 * t46 - t14 * t45;
+    let t113 = fs_1[0] * t45 + t15 * t111;
+    let t114 = fs_1[0] * t46 + t14 * t111;
+    let t115 = fc_1[0] * t112;
+    let t116 = t47 * fc_1[1];
+    let t117 = fc_1[0] * t46 + t14 * t116;
+    let t118 = dl_dot_1 * t20 + t19 * t117;
+    let t119 = fc_1[0] * t45 + t15 * t116;
+    let t120 = dl_dot_1 * t21 + t19 * t119;
+    let t121 = dl_dot_1 * fs_1[0] + t19 * t48;
+    let t122 = t14 * t42;
+    let t123 = t109 * t122;
+    let t124 = t15 * t123;
+    let t125 = t15 * t42;
+    let t126 = t109 * t125;
+    let t127 = fs_1[0] * t42;
+    let t128 = t15 * t126 + t127;
+    let t129 = t127 + t14 * t123;
+    let t130 = t14 * t126;
+    let t131 = fc_1[0] * t125;
+    let t132 = fc_1[0] * t122;
+    let t133 = t43 * fc_1[1];
+    let t134 = fc_1[0] * t42;
+    let t135 = t26 * t131 + t27 * t129;
+    let t136 = t44 * fc_1[1];
+    let t137 = t27 * t130 - t26 * t132;
+    let t138 = t15 * t133 * t19;
+    let t139 = t25 * t131 - t27 * t124 + t138;
+    let t140 = t19 * (t134 + t15 * t136);
+    let t141 = t140 - (t27 * t128 + t25 * t132);
+    let t142 = fs_1[1] * t43 * t19;
+    let t143 = fs_1[1] * t44 * t19;
+    let t144 = t109 * (t45 * t45 + t46 * t46);
+    let t145 = t110 * (t116 + 2.0 * t51) + t144;
+    let t146 = t45 * t48;
+    let t147 = t45 * t111 + t15 * t145 + t146;
+    let t148 = t46 * t48;
+    let t149 = t46 * t111 + t14 * t145 + t148;
+    let t150 = t112 * t116;
+    let t151 = t50 * fc_1[1] + t47 * fc_1[2] * t47;
+    let t152 = t46 * t116;
+    let t153 = dl_dot_1 * t117;
+    let t154 = t19 * (t152 + t14 * t151 + t152);
+    let t155 = t114 * t121 + t27 * t149;
+    let t156 = t115 * t120 + t26 * t150 + t155;
+    let t157 = t115 * t118 + t25 * t150;
+    let t158 = t157 - (t113 * t121 + t27 * t147);
+    let t159 = t45 * t116;
+    let t160 = dl_dot_1 * t119;
+    let t161 = t19 * (t159 + t15 * t151 + t159);
+    let t162 = t113 * t120 + t26 * t147;
+    let t163 = t114 * t118 + t25 * t149 + t162;
+    let t164 = dl_dot_1 * t48;
+    let t165 = t19 * (t47 * t51 + fs_1[1] * t50);
+    rotation[0][0][0] = Interval::from(1.0 - t2 * fc_0[0]);
+    rotation[0][0][1] = Interval::from(t10);
+    rotation[0][0][2] = Interval::from(t8);
+    translation[0][0] = Interval::from(t11);
+    rotation[0][1][0] = Interval::from(t10);
+    rotation[0][1][1] = Interval::from(1.0 - t3 * fc_0[0]);
+    rotation[0][1][2] = Interval::from(t9);
+    translation[0][1] = Interval::from(t12);
+    rotation[0][2][0] = Interval::from(-t8);
+    rotation[0][2][1] = Interval::from(-t9);
+    rotation[0][2][2] = Interval::from(1.0 - t4 * fc_0[0]);
+    translation[0][2] = Interval::from(t13);
+    motion_subspace[0][0][0] = Interval::from(-t67);
+    motion_subspace[0][0][1] = Interval::from(-t71);
+    motion_subspace[0][0][2] = Interval::from(0.0);
+    bias_acceleration[0][0] = Interval::from(-t90);
+    motion_subspace[0][1][0] = Interval::from(t72);
+    motion_subspace[0][1][1] = Interval::from(t73);
+    motion_subspace[0][1][2] = Interval::from(0.0);
+    bias_acceleration[0][1] = Interval::from(t92);
+    motion_subspace[0][2][0] = Interval::from(t74);
+    motion_subspace[0][2][1] = Interval::from(-t75);
+    motion_subspace[0][2][2] = Interval::from(0.0);
+    bias_acceleration[0][2] = Interval::from(t93);
+    motion_subspace[0][3][0] = Interval::from(t78 - t5 * (t0 * t76 + t77));
+    motion_subspace[0][3][1] = Interval::from(t80 - t0 * t79 * t5);
+    motion_subspace[0][3][2] = Interval::from(-t6);
+    bias_acceleration[0][3] = Interval::from(t99 - (t96 + t97 + t96));
+    motion_subspace[0][4][0] = Interval::from(-t82);
+    motion_subspace[0][4][1] = Interval::from(-t84);
+    motion_subspace[0][4][2] = Interval::from(-t7);
+    bias_acceleration[0][4] = Interval::from(-(t103 + t104 + t103 + t101));
+    motion_subspace[0][5][0] = Interval::from(t11 * t72 + t12 * t67 + t85);
+    motion_subspace[0][5][1] = Interval::from(t11 * t73 + t12 * t71 + t86);
+    motion_subspace[0][5][2] = Interval::from(fs_0[0]);
+    bias_acceleration[0][5] = Interval::from(t107 + t108 + t107 + t106);
+    rotation[1][0][0] = Interval::from(1.0 - t16 * fc_1[0]);
+    rotation[1][0][1] = Interval::from(t24);
+    rotation[1][0][2] = Interval::from(t22);
+    translation[1][0] = Interval::from(t25);
+    rotation[1][1][0] = Interval::from(t24);
+    rotation[1][1][1] = Interval::from(1.0 - t17 * fc_1[0]);
+    rotation[1][1][2] = Interval::from(t23);
+    translation[1][1] = Interval::from(t26);
+    rotation[1][2][0] = Interval::from(-t22);
+    rotation[1][2][1] = Interval::from(-t23);
+    rotation[1][2][2] = Interval::from(1.0 - t18 * fc_1[0]);
+    translation[1][2] = Interval::from(t27);
+    motion_subspace[1][0][0] = Interval::from(-t124);
+    motion_subspace[1][0][1] = Interval::from(-t128);
+    motion_subspace[1][0][2] = Interval::from(0.0);
+    bias_acceleration[1][0] = Interval::from(-t147);
+    motion_subspace[1][1][0] = Interval::from(t129);
+    motion_subspace[1][1][1] = Interval::from(t130);
+    motion_subspace[1][1][2] = Interval::from(0.0);
+    bias_acceleration[1][1] = Interval::from(t149);
+    motion_subspace[1][2][0] = Interval::from(t131);
+    motion_subspace[1][2][1] = Interval::from(-t132);
+    motion_subspace[1][2][2] = Interval::from(0.0);
+    bias_acceleration[1][2] = Interval::from(t150);
+    motion_subspace[1][3][0] = Interval::from(t135 - t19 * (t14 * t133 + t134));
+    motion_subspace[1][3][1] = Interval::from(t137 - t14 * t136 * t19);
+    motion_subspace[1][3][2] = Interval::from(-t20);
+    bias_acceleration[1][3] = Interval::from(t156 - (t153 + t154 + t153));
+    motion_subspace[1][4][0] = Interval::from(-t139);
+    motion_subspace[1][4][1] = Interval::from(-t141);
+    motion_subspace[1][4][2] = Interval::from(-t21);
+    bias_acceleration[1][4] = Interval::from(-(t160 + t161 + t160 + t158));
+    motion_subspace[1][5][0] = Interval::from(t25 * t129 + t26 * t124 + t142);
+    motion_subspace[1][5][1] = Interval::from(t25 * t130 + t26 * t128 + t143);
+    motion_subspace[1][5][2] = Interval::from(fs_1[0]);
+    bias_acceleration[1][5] = Interval::from(t164 + t165 + t164 + t163);
+}
+/// Jets of [`joint_terms`]' outputs: enclosures over every state in the boxes
+/// `q`, `q̇` (the jets' values) and of their derivatives along the jets' slopes.
+pub fn joint_terms_dual(
+    p: &[f64; NP],
+    q: &[Dual; NQ],
+    qd: &[Dual; NQ],
+    rotation: &mut [[[Dual; 3]; 3]; N_MODULES],
+    translation: &mut [[Dual; 3]; N_MODULES],
+    motion_subspace: &mut [[[Dual; 3]; 6]; N_MODULES],
+    bias_acceleration: &mut [[Dual; 6]; N_MODULES],
+) {
+    let rest_length_0 = p[0];
+    let tendon_radius_0 = p[1];
+    let rest_length_1 = p[21];
+    let tendon_radius_1 = p[22];
+    let dx_0 = q[0];
+    let dy_0 = q[1];
+    let dl_0 = q[2];
+    let dx_dot_0 = qd[0];
+    let dy_dot_0 = qd[1];
+    let dl_dot_0 = qd[2];
+    let dx_1 = q[3];
+    let dy_1 = q[4];
+    let dl_1 = q[5];
+    let dx_dot_1 = qd[3];
+    let dy_dot_1 = qd[4];
+    let dl_dot_1 = qd[5];
+    let t0 = dx_0 / tendon_radius_0;
+    let t1 = dy_0 / tendon_radius_0;
+    let t2 = t0 * t0;
+    let t3 = t1 * t1;
+    let t4 = t2 + t3;
+    let t5 = rest_length_0 + dl_0;
+    let (fs_0, fc_0) = pcc_fs_fc_2_dual(t4);
+    let t6 = t0 * fc_0[0];
+    let t7 = t1 * fc_0[0];
+    let t8 = t0 * fs_0[0];
+    let t9 = t1 * fs_0[0];
+    let t10 = -t0 * t7;
+    let t11 = t5 * t6;
+    let t12 = t5 * t7;
+    let t13 = t5 * fs_0[0];
+    let t14 = dx_1 / tendon_radius_1;
+    let t15 = dy_1 / tendon_radius_1;
+    let t16 = t14 * t14;
+    let t17 = t15 * t15;
+    let t18 = t16 + t17;
+    let t19 = rest_length_1 + dl_1;
+    let (fs_1, fc_1) = pcc_fs_fc_2_dual(t18);
+    let t20 = t14 * fc_1[0];
+    let t21 = t15 * fc_1[0];
+    let t22 = t14 * fs_1[0];
+    let t23 = t15 * fs_1[0];
+    let t24 = -t14 * t21;
+    let t25 = t19 * t20;
+    let t26 = t19 * t21;
+    let t27 = t19 * fs_1[0];
+    let t28 = 1.0 / tendon_radius_0;
+    let t29 = 2.0 * t1;
+    let t30 = 2.0 * t0;
+    let t31 = t28 * t30;
+    let t32 = t28 * t29;
+    let t33 = dy_dot_0 / tendon_radius_0;
+    let t34 = dx_dot_0 / tendon_radius_0;
+    let t35 = t29 * t33 + t30 * t34;
+    let t36 = fs_0[1] * t35;
+    let t37 = 2.0 * t33 * t33;
+    let t38 = 2.0 * t34 * t34 + t37;
+    let t39 = t35 * fs_0[2];
+    let t40 = 2.0 * t15;
+    let t41 = 2.0 * t14;
+    let t42 = 1.0 / tendon_radius_1;
+    let t43 = t41 * t42;
+    let t44 = t40 * t42;
+    let t45 = dy_dot_1 / tendon_radius_1;
+    let t46 = dx_dot_1 / tendon_radius_1;
+    let t47 = t40 * t45 + t41 * t46;
+    let t48 = fs_1[1] * t47;
+    let t49 = 2.0 * t45 * t45;
+    let t50 = 2.0 * t46 * t46 + t49;
+    let t51 = t47 * fs_1[2];
+    let t52 = fc_0[0] + 2.0 * fs_0[1];
+    let t53 = t0 * t34 + t1 * t33;
+    let t54 = t52 * t53;
+    let t55 = t1 * t34 - t0 * t33;
+    let t56 = fs_0[0] * t33 + t1 * t54;
+    let t57 = fs_0[0] * t34 + t0 * t54;
+    let t58 = fc_0[0] * t55;
+    let t59 = t35 * fc_0[1];
+    let t60 = fc_0[0] * t34 + t0 * t59;
+    let t61 = dl_dot_0 * t6 + t5 * t60;
+    let t62 = fc_0[0] * t33 + t1 * t59;
+    let t63 = dl_dot_0 * t7 + t5 * t62;
+    let t64 = dl_dot_0 * fs_0[0] + t5 * t36;
+    let t65 = t0 * t28;
+    let t66 = t52 * t65;
+    let t67 = t1 * t66;
+    let t68 = t1 * t28;
+    let t69 = t52 * t68;
+    let t70 = fs_0[0] * t28;
+    let t71 = t1 * t69 + t70;
+    let t72 = t70 + t0 * t66;
+    let t73 = t0 * t69;
+    let t74 = fc_0[0] * t68;
+    let t75 = fc_0[0] * t65;
+    let t76 = t31 * fc_0[1];
+    let t77 = fc_0[0] * t28;
+    let t78 = t12 * t74 + t13 * t72;
+    let t79 = t32 * fc_0[1];
+    let t80 = t13 * t73 - t12 * t75;
+    let t81 = t1 * t76 * t5;
+    let t82 = t11 * t74 - t13 * t67 + t81;
+    let t83 = t5 * (t77 + t1 * t79);
+    let t84 = t83 - (t13 * t71 + t11 * t75);
+    let t85 = t31 * fs_0[1] * t5;
+    let t86 = fs_0[1] * t32 * t5;
+    let t87 = t52 * (t33 * t33 + t34 * t34);
+    let t88 = t53 * (t59 + 2.0 * t39) + t87;
+    let t89 = t33 * t36;
+    let t90 = t33 * t54 + t1 * t88 + t89;
+    let t91 = t34 * t36;
+    let t92 = t34 * t54 + t0 * t88 + t91;
+    let t93 = t55 * t59;
+    let t94 = t38 * fc_0[1] + t35 * fc_0[2] * t35;
+    let t95 = t34 * t59;
+    let t96 = dl_dot_0 * t60;
+    let t97 = t5 * (t95 + t0 * t94 + t95);
+    let t98 = t57 * t64 + t13 * t92;
+    let t99 = t58 * t63 + t12 * t93 + t98;
+    let t100 = t58 * t61 + t11 * t93;
+    let t101 = t100 - (t56 * t64 + t13 * t90);
+    let t102 = t33 * t59;
+    let t103 = dl_dot_0 * t62;
+    let t104 = t5 * (t102 + t1 * t94 + t102);
+    let t105 = t56 * t63 + t12 * t90;
+    let t106 = t57 * t61 + t11 * t92 + t105;
+    let t107 = dl_dot_0 * t36;
+    let t108 = t5 * (t35 * t39 + fs_0[1] * t38);
+    let t109 = fc_1[0] + 2.0 * fs_1[1];
+    let t110 = t14 * t46 + t15 * t45;
+    let t111 = t109 * t110;
+    let t112 = t15 * t46 - t14 * t45;
+    let t113 = fs_1[0] * t45 + t15 * t111;
+    let t114 = fs_1[0] * t46 + t14 * t111;
+    let t115 = fc_1[0] * t112;
+    let t116 = t47 * fc_1[1];
+    let t117 = fc_1[0] * t46 + t14 * t116;
+    let t118 = dl_dot_1 * t20 + t19 * t117;
+    let t119 = fc_1[0] * t45 + t15 * t116;
+    let t120 = dl_dot_1 * t21 + t19 * t119;
+    let t121 = dl_dot_1 * fs_1[0] + t19 * t48;
+    let t122 = t14 * t42;
+    let t123 = t109 * t122;
+    let t124 = t15 * t123;
+    let t125 = t15 * t42;
+    let t126 = t109 * t125;
+    let t127 = fs_1[0] * t42;
+    let t128 = t15 * t126 + t127;
+    let t129 = t127 + t14 * t123;
+    let t130 = t14 * t126;
+    let t131 = fc_1[0] * t125;
+    let t132 = fc_1[0] * t122;
+    let t133 = t43 * fc_1[1];
+    let t134 = fc_1[0] * t42;
+    let t135 = t26 * t131 + t27 * t129;
+    let t136 = t44 * fc_1[1];
+    let t137 = t27 * t130 - t26 * t132;
+    let t138 = t15 * t133 * t19;
+    let t139 = t25 * t131 - t27 * t124 + t138;
+    let t140 = t19 * (t134 + t15 * t136);
+    let t141 = t140 - (t27 * t128 + t25 * t132);
+    let t142 = fs_1[1] * t43 * t19;
+    let t143 = fs_1[1] * t44 * t19;
+    let t144 = t109 * (t45 * t45 + t46 * t46);
+    let t145 = t110 * (t116 + 2.0 * t51) + t144;
+    let t146 = t45 * t48;
+    let t147 = t45 * t111 + t15 * t145 + t146;
+    let t148 = t46 * t48;
+    let t149 = t46 * t111 + t14 * t145 + t148;
+    let t150 = t112 * t116;
+    let t151 = t50 * fc_1[1] + t47 * fc_1[2] * t47;
+    let t152 = t46 * t116;
+    let t153 = dl_dot_1 * t117;
+    let t154 = t19 * (t152 + t14 * t151 + t152);
+    let t155 = t114 * t121 + t27 * t149;
+    let t156 = t115 * t120 + t26 * t150 + t155;
+    let t157 = t115 * t118 + t25 * t150;
+    let t158 = t157 - (t113 * t121 + t27 * t147);
+    let t159 = t45 * t116;
+    let t160 = dl_dot_1 * t119;
+    let t161 = t19 * (t159 + t15 * t151 + t159);
+    let t162 = t113 * t120 + t26 * t147;
+    let t163 = t114 * t118 + t25 * t149 + t162;
+    let t164 = dl_dot_1 * t48;
+    let t165 = t19 * (t47 * t51 + fs_1[1] * t50);
+    rotation[0][0][0] = Dual::from(1.0 - t2 * fc_0[0]);
+    rotation[0][0][1] = Dual::from(t10);
+    rotation[0][0][2] = Dual::from(t8);
+    translation[0][0] = Dual::from(t11);
+    rotation[0][1][0] = Dual::from(t10);
+    rotation[0][1][1] = Dual::from(1.0 - t3 * fc_0[0]);
+    rotation[0][1][2] = Dual::from(t9);
+    translation[0][1] = Dual::from(t12);
+    rotation[0][2][0] = Dual::from(-t8);
+    rotation[0][2][1] = Dual::from(-t9);
+    rotation[0][2][2] = Dual::from(1.0 - t4 * fc_0[0]);
+    translation[0][2] = Dual::from(t13);
+    motion_subspace[0][0][0] = Dual::from(-t67);
+    motion_subspace[0][0][1] = Dual::from(-t71);
+    motion_subspace[0][0][2] = Dual::from(0.0);
+    bias_acceleration[0][0] = Dual::from(-t90);
+    motion_subspace[0][1][0] = Dual::from(t72);
+    motion_subspace[0][1][1] = Dual::from(t73);
+    motion_subspace[0][1][2] = Dual::from(0.0);
+    bias_acceleration[0][1] = Dual::from(t92);
+    motion_subspace[0][2][0] = Dual::from(t74);
+    motion_subspace[0][2][1] = Dual::from(-t75);
+    motion_subspace[0][2][2] = Dual::from(0.0);
+    bias_acceleration[0][2] = Dual::from(t93);
+    motion_subspace[0][3][0] = Dual::from(t78 - t5 * (t0 * t76 + t77));
+    motion_subspace[0][3][1] = Dual::from(t80 - t0 * t79 * t5);
+    motion_subspace[0][3][2] = Dual::from(-t6);
+    bias_acceleration[0][3] = Dual::from(t99 - (t96 + t97 + t96));
+    motion_subspace[0][4][0] = Dual::from(-t82);
+    motion_subspace[0][4][1] = Dual::from(-t84);
+    motion_subspace[0][4][2] = Dual::from(-t7);
+    bias_acceleration[0][4] = Dual::from(-(t103 + t104 + t103 + t101));
+    motion_subspace[0][5][0] = Dual::from(t11 * t72 + t12 * t67 + t85);
+    motion_subspace[0][5][1] = Dual::from(t11 * t73 + t12 * t71 + t86);
+    motion_subspace[0][5][2] = Dual::from(fs_0[0]);
+    bias_acceleration[0][5] = Dual::from(t107 + t108 + t107 + t106);
+    rotation[1][0][0] = Dual::from(1.0 - t16 * fc_1[0]);
+    rotation[1][0][1] = Dual::from(t24);
+    rotation[1][0][2] = Dual::from(t22);
+    translation[1][0] = Dual::from(t25);
+    rotation[1][1][0] = Dual::from(t24);
+    rotation[1][1][1] = Dual::from(1.0 - t17 * fc_1[0]);
+    rotation[1][1][2] = Dual::from(t23);
+    translation[1][1] = Dual::from(t26);
+    rotation[1][2][0] = Dual::from(-t22);
+    rotation[1][2][1] = Dual::from(-t23);
+    rotation[1][2][2] = Dual::from(1.0 - t18 * fc_1[0]);
+    translation[1][2] = Dual::from(t27);
+    motion_subspace[1][0][0] = Dual::from(-t124);
+    motion_subspace[1][0][1] = Dual::from(-t128);
+    motion_subspace[1][0][2] = Dual::from(0.0);
+    bias_acceleration[1][0] = Dual::from(-t147);
+    motion_subspace[1][1][0] = Dual::from(t129);
+    motion_subspace[1][1][1] = Dual::from(t130);
+    motion_subspace[1][1][2] = Dual::from(0.0);
+    bias_acceleration[1][1] = Dual::from(t149);
+    motion_subspace[1][2][0] = Dual::from(t131);
+    motion_subspace[1][2][1] = Dual::from(-t132);
+    motion_subspace[1][2][2] = Dual::from(0.0);
+    bias_acceleration[1][2] = Dual::from(t150);
+    motion_subspace[1][3][0] = Dual::from(t135 - t19 * (t14 * t133 + t134));
+    motion_subspace[1][3][1] = Dual::from(t137 - t14 * t136 * t19);
+    motion_subspace[1][3][2] = Dual::from(-t20);
+    bias_acceleration[1][3] = Dual::from(t156 - (t153 + t154 + t153));
+    motion_subspace[1][4][0] = Dual::from(-t139);
+    motion_subspace[1][4][1] = Dual::from(-t141);
+    motion_subspace[1][4][2] = Dual::from(-t21);
+    bias_acceleration[1][4] = Dual::from(-(t160 + t161 + t160 + t158));
+    motion_subspace[1][5][0] = Dual::from(t25 * t129 + t26 * t124 + t142);
+    motion_subspace[1][5][1] = Dual::from(t25 * t130 + t26 * t128 + t143);
+    motion_subspace[1][5][2] = Dual::from(fs_1[0]);
+    bias_acceleration[1][5] = Dual::from(t164 + t165 + t164 + t163);
 }
 /// World poses `W_i = T_1 ⋯ T_i` of every module's top plate (4×4, rows).
 pub fn plate_poses(

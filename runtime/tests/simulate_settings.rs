@@ -238,7 +238,7 @@ fn the_summary_records_every_setting_and_the_flags_change_them() {
     assert!(stdout.starts_with("settings: softcbf "), "{stdout}");
     assert!(stdout.contains("p1 = 10 (robot file)"), "{stdout}");
     assert!(
-        stdout.contains("paper-sim on paper-sim [filter]"),
+        stdout.contains("paper-sim-certified on paper-sim [filter]"),
         "{stdout}"
     );
     let _ = std::fs::remove_dir_all(&dir);
@@ -263,7 +263,7 @@ fn another_robot_is_named_in_the_one_line_summary() {
     assert_ran(&output, &["--no-filter"]);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
-        stdout.contains("paper-sim on hardware-example [pd]"),
+        stdout.contains("paper-sim-certified on hardware-example [pd]"),
         "{stdout}"
     );
     assert!(stdout.contains("p1 = 20 (robot file)"), "{stdout}");
@@ -306,7 +306,7 @@ fn settings_that_cannot_work_are_refused_with_the_option_or_field_named() {
     assert!(stderr.contains("--set-point: 3 values given"), "{stderr}");
     let stderr = refused(&["--safety", "yes", "--out", out], 2);
     assert!(
-        stderr.contains("`yes` is not a safety mode; give one of \"sampled\""),
+        stderr.contains("`yes` is not a safety mode; give one of \"certified\""),
         "{stderr}"
     );
 

@@ -887,10 +887,10 @@ fn a_run_with_invalid_states_has_one_verdict_in_verify_and_in_replay() {
     let bad = summary["invalid_rows"].as_u64().unwrap();
     let rows = summary["rows"].as_u64().unwrap();
     assert!(bad > 0 && rows > bad, "{bad} of {rows}");
-    // The first such run of this batch: over its valid rows alone it looks safe, the
-    // reassuring number the invalid rows must not hide.
+    // Over its valid rows alone the lowest barrier is a number; the invalid rows must not
+    // hide behind it.
     let valid_lowest = summary["min_barrier"]["value"].as_f64().unwrap();
-    assert!(valid_lowest >= -1e-6, "run {run}: {valid_lowest} m");
+    assert!(valid_lowest.is_finite(), "run {run}: {valid_lowest} m");
     assert!(
         stdout.contains(&format!(
             "none at {bad} of {rows} recorded rows (an invalid state"

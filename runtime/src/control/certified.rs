@@ -501,8 +501,9 @@ pub(super) fn certified_filter(
                 }
                 return TickStatus::Filtered;
             }
-            // The rows had no common point: the relaxed command, reported as such.
-            (TickStatus::Relaxed, _) => return TickStatus::Relaxed,
+            // The tightened rows had no common point: the predicted rows' command below
+            // (relaxed, and reported so, only if those have none either).
+            (TickStatus::Relaxed, _) => break,
             (_, Check::Start) if attempt == 0 => {
                 outcome = TickStatus::Uncertified(Uncertified::Start);
             }
@@ -512,16 +513,21 @@ pub(super) fn certified_filter(
             _ => {}
         }
     }
-    // No attempt was proven: the command of the prediction's rows alone (the margins that
-    // tightened them may be stale, and a command that meets stale margins early in the
-    // hold can be violent), reported with why the first attempt's bound failed.
+    // No attempt was proven: the predicted rows' command (both passes and, with a declared
+    // box, their robust margin; the margins that tightened the attempts may be stale),
+    // reported with why the first attempt's bound failed.
     let Some(ws) = controller.certified.as_mut() else {
         return controller.fallback(InvalidState::NonFiniteModel);
     };
     ws.have_last = false;
     ws.shrink = f64::INFINITY;
-    first_pass_rows(controller);
-    match solve_rows(controller) {
+    // Every row of the certified layout inactive; the predicted rows write their own.
+    let end = controller.barrier_rows + CertifiedWorkspace::box_rows(nq);
+    for r in 0..end {
+        controller.rows[r * nq..(r + 1) * nq].fill(0.0);
+        controller.rhs[r] = INACTIVE;
+    }
+    match super::sampled_filter(model, controller, q, qd) {
         TickStatus::Filtered => outcome,
         status => status,
     }
@@ -583,6 +589,11 @@ fn first_pass_rows(controller: &mut Controller) {
         controller.rhs[r] = -dot(jacobian_row, free_velocity)
             - p1 * (barriers.values()[k] + dot(jacobian_row, free))
             + dot(row, &ws.offset);
+    }
+    // Rows the predicted rows' fallback uses beyond these: inactive here.
+    for r in (s + 1) * nb..controller.barrier_rows {
+        controller.rows[r * nq..(r + 1) * nq].fill(0.0);
+        controller.rhs[r] = INACTIVE;
     }
     // The box |u_i| ≤ shrink |u_first,i| (inactive at the first attempt).
     let first = controller.barrier_rows;

@@ -782,8 +782,13 @@ impl Controller {
         let (nq, nb) = (model.nq(), model.nb());
         settings.validate(nq)?;
         let (limit_rows, limit_rhs) = &settings.input_limits;
-        let sampled = (settings.safety == SafetyMode::Predicted)
-            .then(|| SampledWorkspace::new(model, &settings.sampled));
+        // The certified rows keep the predicted rows' workspace too: a tick they cannot
+        // prove takes the predicted rows' command (both passes, the robust margin).
+        let sampled = matches!(
+            settings.safety,
+            SafetyMode::Predicted | SafetyMode::Certified
+        )
+        .then(|| SampledWorkspace::new(model, &settings.sampled));
         let mut sampled = sampled;
         if let Some(sampled) = sampled.as_mut()
             && model.robot.uncertainty.is_declared()
@@ -800,7 +805,11 @@ impl Controller {
         let (barrier_rows, extra_rows) = match settings.safety {
             SafetyMode::Predicted => (nb * (samples + 1), 0),
             SafetyMode::Certified => (
-                nb * (certified.as_ref().map_or(samples, |c| c.samples()) + 1),
+                nb * (certified
+                    .as_ref()
+                    .map_or(samples, |c| c.samples())
+                    .max(samples)
+                    + 1),
                 CertifiedWorkspace::box_rows(nq),
             ),
             SafetyMode::Paper | SafetyMode::HoldCorrection => (nb, 0),
@@ -1126,11 +1135,11 @@ pub fn tick_nominal(
         controller.tau.copy_from_slice(&controller.tau_nom);
         return TickStatus::Unfiltered;
     }
-    if controller.sampled.is_some() {
-        return sampled_filter(model, controller, q, qd);
-    }
     if controller.certified.is_some() {
         return certified_filter(model, controller, q, qd);
+    }
+    if controller.sampled.is_some() {
+        return sampled_filter(model, controller, q, qd);
     }
 
     // Rows A_k = J_k M⁻¹ and right-hand sides J_k M⁻¹ n − J̇q̇_k − (p1+p2) J_k q̇ − p1 p2 b_k
@@ -1270,7 +1279,12 @@ impl PaperRows<'_> {
 /// by the linearized dynamics (`q₀ + a_j + Γ_j (τ − g₀)`); each further pass integrates the
 /// nonlinear plant under the previous pass's command `τ'` and keeps
 /// `b_k(q'(t_j)) + J_k(q'(t_j)) Γ_j (τ − τ') ≥ max(ψ_k(t_j), 0)`.
-fn sampled_filter(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) -> TickStatus {
+pub(super) fn sampled_filter(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+) -> TickStatus {
     let (nq, nb) = (controller.nq, controller.nb);
     let Some(sampled) = controller.sampled.as_mut() else {
         return controller.fallback(InvalidState::NonFiniteModel);

@@ -947,6 +947,7 @@ fn write_summary(
         "fallbacks": s.fallbacks,
         "invalid_state": s.invalid,
         "relaxed": s.relaxed,
+        "uncertified": s.uncertified,
         "unfiltered": s.unfiltered,
         "interventions": s.interventions,
         "deadline_overruns": s.deadlines.deadline_overruns,
@@ -1047,7 +1048,7 @@ fn report(s: &RunSummary, limits: &VerdictLimits, console: &mut Console) {
     };
     console.say(&format!("stopped: {stop}"));
     console.say(&format!(
-        "{} ticks in {:.2} s ({:.1} Hz): {} commands, {} held (no fresh reading), {} safe fallbacks ({} invalid states), {} relaxed, {} deadline overruns",
+        "{} ticks in {:.2} s ({:.1} Hz): {} commands, {} held (no fresh reading), {} safe fallbacks ({} invalid states), {} relaxed, {} not proven over their hold, {} deadline overruns",
         s.ticks,
         s.elapsed,
         s.rate(),
@@ -1056,6 +1057,7 @@ fn report(s: &RunSummary, limits: &VerdictLimits, console: &mut Console) {
         s.fallbacks,
         s.invalid,
         s.relaxed,
+        s.uncertified,
         s.deadlines.deadline_overruns
     ));
     console.say(&format!(

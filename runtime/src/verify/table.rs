@@ -572,7 +572,7 @@ mod tests {
         let rows = vec![row(0, -1e-7), row(1, f64::INFINITY), row(2, 3.0e-14)];
         let groups = vec![
             "paper @ 1000 Hz".to_string(),
-            "sampled @ 33.0 Hz".to_string(),
+            "certified @ 33.0 Hz".to_string(),
         ];
         let text = runs_csv(&rows, 6);
         let back = read_runs(&text, Path::new("runs.csv"), 6, &groups).expect("reads");
@@ -597,7 +597,7 @@ mod tests {
         let mut r = row(0, 0.0);
         r.stopped = "plant integration failed: step, \"too small\"\nat t = 1".into();
         let text = runs_csv(&[r], 6);
-        let groups = vec!["x".to_string(), "sampled @ 33.0 Hz".to_string()];
+        let groups = vec!["x".to_string(), "certified @ 33.0 Hz".to_string()];
         let back = read_runs(&text, Path::new("r.csv"), 6, &groups).expect("reads");
         assert_eq!(
             back[0].stopped,
