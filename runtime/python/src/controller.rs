@@ -130,12 +130,16 @@ impl Controller {
         let q = vector(q, "q", nq)?;
         let qd = vector(qd, "qd", nq)?;
         let set_point = vector(set_point, "set_point", nq)?;
-        // A set point outside the model's domain is no reference the filter can keep safe
-        // toward (the command line refuses it too).
+        // A finite set point outside the model's domain is no reference the filter can keep
+        // safe toward (the command line refuses it too); a non-finite one is a fault the
+        // tick answers with the safe command (status "invalid_state").
+        let finite = set_point.as_slice().iter().all(|x| x.is_finite());
         if let Some(problem) = softcbf_description::domain::coordinates_problem(
             &self.model.robot,
             set_point.as_slice(),
-        ) {
+        )
+        .filter(|_| finite)
+        {
             return Err(PyValueError::new_err(format!(
                 "set_point: outside the model's domain: {problem}"
             )));

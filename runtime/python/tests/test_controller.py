@@ -100,3 +100,12 @@ def test_wrong_shapes_and_dtypes_raise(argument, value, error):
     args[argument] = value
     with pytest.raises(error, match=argument):
         controller.tick(**args)
+
+
+def test_a_set_point_outside_the_domain_is_refused():
+    # A finite set point the model cannot describe (module 1 compressed past zero length) is
+    # refused, as the command line refuses it, rather than filtered toward.
+    controller = softcbf.Controller(softcbf.Robot.paper_sim())
+    zero = np.zeros(6)
+    with pytest.raises(ValueError, match="set_point: outside the model's domain"):
+        controller.tick(zero, zero, np.array([0, 0, -0.5, 0, 0, 0.0]))
