@@ -575,21 +575,14 @@ fn first_pass_rows(controller: &mut Controller) {
                     + dot(row, &ws.offset);
         }
     }
-    let (free, forced) = (ws.prediction.free(s - 1), ws.prediction.forced(s - 1));
-    let (free_velocity, forced_velocity) = (
-        ws.prediction.end_velocity_free(),
-        ws.prediction.end_velocity_forced(),
-    );
-    for k in 0..nb {
-        let p1 = controller.barrier_gains[k][0] * scale;
-        let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
-        let r = s * nb + k;
-        let row = &mut controller.rows[r * nq..(r + 1) * nq];
-        super::end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
-        controller.rhs[r] = -dot(jacobian_row, free_velocity)
-            - p1 * (barriers.values()[k] + dot(jacobian_row, free))
-            + dot(row, &ws.offset);
-    }
+    let end = super::EndRows {
+        prediction: &ws.prediction,
+        barriers,
+        gains: &controller.barrier_gains,
+        scale,
+        offset: &ws.offset,
+    };
+    end.write(s, &mut controller.rows, &mut controller.rhs);
     // Rows the predicted rows' fallback uses beyond these: inactive here.
     for r in (s + 1) * nb..controller.barrier_rows {
         controller.rows[r * nq..(r + 1) * nq].fill(0.0);

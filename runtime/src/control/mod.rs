@@ -1345,24 +1345,14 @@ pub(super) fn sampled_filter(
         }
     }
     // The end of the hold: ḃ + p1 b ≥ 0 there, with ḃ ≈ J (ȧ + Γ̇ u), b ≈ b + J (a + Γ u).
-    let (free, forced) = (
-        sampled.prediction.free(m - 1),
-        sampled.prediction.forced(m - 1),
-    );
-    let (free_velocity, forced_velocity) = (
-        sampled.prediction.end_velocity_free(),
-        sampled.prediction.end_velocity_forced(),
-    );
-    for k in 0..nb {
-        let p1 = controller.barrier_gains[k][0] * scale;
-        let jacobian_row = &barriers.jacobian()[k * nq..(k + 1) * nq];
-        let r = m * nb + k;
-        let row = &mut controller.rows[r * nq..(r + 1) * nq];
-        end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
-        controller.rhs[r] = -dot(jacobian_row, free_velocity)
-            - p1 * (barriers.values()[k] + dot(jacobian_row, free))
-            + dot(row, &sampled.offset);
-    }
+    let end = EndRows {
+        prediction: &sampled.prediction,
+        barriers,
+        gains: &controller.barrier_gains,
+        scale,
+        offset: &sampled.offset,
+    };
+    end.write(m, &mut controller.rows, &mut controller.rhs);
     let mut status = solve_rows(controller);
     for _ in 1..controller.settings.sampled.passes {
         if status.is_fallback() {
@@ -1512,6 +1502,39 @@ fn forced_row(jacobian_row: &[f64], forced: &[f64], nq: usize, row: &mut [f64]) 
             for (a, g) in row.iter_mut().zip(&forced[c * nq..(c + 1) * nq]) {
                 *a += j * g;
             }
+        }
+    }
+}
+
+/// The rows `ḃ_k + p1 b_k ≥ 0` at the end of the hold, one per barrier, after `samples`
+/// rows per barrier (the predicted and the certified rows alike): `J_k (Γ̇ + p1 Γ) τ ≥
+/// −J_k ȧ − p1 (b_k + J_k a) + J_k (Γ̇ + p1 Γ) g₀`, with `a`, `Γ` at the last sample.
+struct EndRows<'a> {
+    prediction: &'a HoldPrediction,
+    barriers: &'a BarrierTerms,
+    gains: &'a [[f64; 2]],
+    /// The loop's gain scale (nominal / achieved period).
+    scale: f64,
+    /// `g₀`, the command's offset `τ = u + g₀`.
+    offset: &'a [f64],
+}
+
+impl EndRows<'_> {
+    fn write(&self, samples: usize, rows: &mut [f64], rhs: &mut [f64]) {
+        let nq = self.offset.len();
+        let nb = self.gains.len();
+        let p = self.prediction;
+        let (free, forced) = (p.free(samples - 1), p.forced(samples - 1));
+        let (free_velocity, forced_velocity) = (p.end_velocity_free(), p.end_velocity_forced());
+        for k in 0..nb {
+            let p1 = self.gains[k][0] * self.scale;
+            let jacobian_row = &self.barriers.jacobian()[k * nq..(k + 1) * nq];
+            let r = samples * nb + k;
+            let row = &mut rows[r * nq..(r + 1) * nq];
+            end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
+            rhs[r] = -dot(jacobian_row, free_velocity)
+                - p1 * (self.barriers.values()[k] + dot(jacobian_row, free))
+                + dot(row, self.offset);
         }
     }
 }
