@@ -5,7 +5,8 @@
 //! The ticks are taken at the states of the paper scenario's filtered run (every 10th
 //! tick of 10 s), cycled, so the QP sees its real mix of active sets. Run with
 //! `cargo bench -p softcbf --bench control`; the simulator bench also prints the split
-//! between control ticks and integration of one run.
+//! between control ticks and integration of one run, and the certified ticks the split
+//! between prediction, bound, QP and the fallback of unproven ticks.
 
 use std::hint::black_box;
 
@@ -74,6 +75,20 @@ fn bench_cycle(
             ))
         })
     });
+    if let Some(split) = controller.certified_split().filter(|split| split.ticks > 0) {
+        let per_tick = |seconds: f64| seconds / split.ticks as f64 * 1e6;
+        let total = split.prediction + split.bound + split.qp + split.fallback;
+        eprintln!(
+            "{name}: mean over {} ticks {:.0} µs: prediction {:.0} µs, bound {:.0} µs, QP {:.0} µs, \
+             fallback of unproven ticks {:.0} µs",
+            split.ticks,
+            per_tick(total),
+            per_tick(split.prediction),
+            per_tick(split.bound),
+            per_tick(split.qp),
+            per_tick(split.fallback),
+        );
+    }
 }
 
 fn bench_scenario(c: &mut Criterion) {

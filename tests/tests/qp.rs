@@ -291,6 +291,40 @@ fn contradictory_rows_are_relaxed() {
     }
 }
 
+/// `solve_strict` answers the hard problem only: contradictory rows fail (NaN τ, nothing
+/// relaxed), a feasible problem gets the same τ as `solve`.
+#[test]
+fn strict_solve_does_not_relax() {
+    for use_fast_path in [true, false] {
+        let settings = QpSettings {
+            use_fast_path,
+            ..QpSettings::default()
+        };
+        let mut qp = SafetyQp::new(3, 3, settings).unwrap();
+        let a = [1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let tau_nom = [0.3, 2.0, -1.0];
+        let mut tau = [0.0; 3];
+        let report = qp
+            .solve_strict(&tau_nom, &a, &[1.0, 0.0, -5.0], &mut tau)
+            .clone();
+        assert_eq!(report.status, QpStatus::Failed);
+        assert!(report.relaxed_rows.is_empty());
+        assert!(tau.iter().all(|x| x.is_nan()), "{tau:?}");
+        // τ₀ ≥ 1, −τ₀ ≥ −4, τ₁ ≥ −5: τ = (1, 2, −1), the closed form.
+        let b = [1.0, -4.0, -5.0];
+        let report = qp.solve_strict(&tau_nom, &a, &b, &mut tau).clone();
+        assert_eq!(report.status, QpStatus::Solved);
+        let expected = [1.0, 2.0, -1.0];
+        assert!(
+            tau.iter().zip(expected).all(|(x, e)| (x - e).abs() < 1e-8),
+            "{tau:?}"
+        );
+        let mut relaxing = [0.0; 3];
+        qp.solve(&tau_nom, &a, &b, &mut relaxing);
+        assert_eq!(tau, relaxing);
+    }
+}
+
 #[test]
 fn random_infeasible_instances_are_relaxed_optimally() {
     let mut rng = softcbf_tests::rng(3);

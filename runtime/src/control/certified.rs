@@ -33,6 +33,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use std::ops::Range;
+use std::time::Instant;
 
 use softcbf_generated::{Dual, Interval};
 
@@ -42,7 +43,7 @@ use crate::hold::{HoldPrediction, comparison};
 use crate::linalg::{cholesky_inverse, dot};
 use crate::model::Model;
 
-use super::{Controller, InvalidState, SampledSettings, TickStatus, solve_rows};
+use super::{Controller, InvalidState, SampledSettings, TickStatus, try_rows};
 
 /// Why a tick's command could not be certified (its status is
 /// [`TickStatus::Uncertified`]; the command is the best one found, see there).
@@ -121,6 +122,28 @@ impl Cells {
             jerk_variation: vec![0.0; len],
         }
     }
+}
+
+/// Where a certified tick's time goes, summed over the ticks since the controller was made
+/// \[s\]: the linear prediction and its correction (with the rows written from them), the
+/// bound (error bound and barrier enclosures), the QPs, and on ticks no attempt proved, the
+/// predicted rows' fallback command (its own prediction and QPs).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CertifiedSplit {
+    /// Ticks counted.
+    pub ticks: u64,
+    pub prediction: f64,
+    pub bound: f64,
+    pub qp: f64,
+    pub fallback: f64,
+}
+
+/// Seconds since `mark`, and `mark` moved to now.
+fn lap(mark: &mut Instant) -> f64 {
+    let now = Instant::now();
+    let elapsed = now.duration_since(*mark).as_secs_f64();
+    *mark = now;
+    elapsed
 }
 
 /// What the certified rows need besides the controller's own buffers.
@@ -217,6 +240,7 @@ pub(super) struct CertifiedWorkspace {
     vector: Vec<f64>,
     vector2: Vec<f64>,
     iterate: Vec<f64>,
+    pub(super) split: CertifiedSplit,
 }
 
 impl CertifiedWorkspace {
@@ -341,6 +365,22 @@ impl CertifiedWorkspace {
             vector: vec![0.0; 2 * nq],
             vector2: vec![0.0; 2 * nq],
             iterate: vec![0.0; 2 * nq],
+            split: CertifiedSplit::default(),
+        }
+    }
+
+    /// The next attempt after one that failed: the rows without the last tick's margins
+    /// (they may be stale), or, without those already, a command held closer to holding the
+    /// state (the box shrunk by [`SHRINK`]).
+    fn retreat(&mut self) {
+        if self.have_last {
+            self.have_last = false;
+        } else {
+            self.shrink = if self.shrink.is_finite() {
+                self.shrink * SHRINK
+            } else {
+                SHRINK
+            };
         }
     }
 
@@ -400,6 +440,32 @@ pub(super) fn certified_filter(
     q: &[f64],
     qd: &[f64],
 ) -> TickStatus {
+    let mut mark = Instant::now();
+    let mut split = CertifiedSplit {
+        ticks: 1,
+        ..CertifiedSplit::default()
+    };
+    let status = certified_attempts(model, controller, q, qd, &mut mark, &mut split);
+    if let Some(ws) = controller.certified.as_mut() {
+        let total = &mut ws.split;
+        total.ticks += split.ticks;
+        total.prediction += split.prediction;
+        total.bound += split.bound;
+        total.qp += split.qp;
+        total.fallback += split.fallback + lap(&mut mark);
+    }
+    status
+}
+
+/// The attempts of [`certified_filter`], timing each part into `split` from `mark`.
+fn certified_attempts(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+    mark: &mut Instant,
+    split: &mut CertifiedSplit,
+) -> TickStatus {
     let (nq, nb) = (controller.nq, controller.nb);
     cholesky_inverse(
         &controller.dynamics.cholesky,
@@ -424,6 +490,8 @@ pub(super) fn certified_filter(
     for i in 0..nq {
         ws.offset[i] = controller.dynamics.nonlinear[i] + model.stiffness[i] * q[i];
     }
+    // The linear model's response, once per tick: every attempt bounds a command against it.
+    response(model, ws, &controller.dynamics.mass_matrix, qd);
     let s = ws.samples;
     // Floors: the comparison curve of each barrier, never below zero while it is above.
     let barriers = &controller.barrier_terms;
@@ -447,17 +515,27 @@ pub(super) fn certified_filter(
     ws.shrink = f64::INFINITY;
     for attempt in 0..ATTEMPTS {
         first_pass_rows(controller);
-        let first = solve_rows(controller);
-        if first.is_fallback() {
-            return first;
-        }
+        split.prediction += lap(mark);
+        let first = try_rows(controller);
+        split.qp += lap(mark);
         let Some(ws) = controller.certified.as_mut() else {
             return controller.fallback(InvalidState::NonFiniteModel);
         };
-        if attempt == 0 {
-        } else if first != TickStatus::Filtered {
-            // The box or the new margins leave the rows no common point: give up on them.
-            break;
+        match first {
+            Some(TickStatus::Filtered) => {}
+            Some(status) => return status,
+            // The first rows have no common point: those without the last tick's margins,
+            // or else a command closer to holding the state, as where a bound does not
+            // close; a later attempt's rows (the box, the new margins): give up on them.
+            None if attempt == 0 => {
+                // The box of a later attempt scales with the nominal command then.
+                for i in 0..nq {
+                    ws.first_center[i] = controller.tau_nom[i] - ws.offset[i];
+                }
+                ws.retreat();
+                continue;
+            }
+            None => break,
         }
         for i in 0..nq {
             ws.center[i] = controller.tau[i] - ws.offset[i];
@@ -467,47 +545,38 @@ pub(super) fn certified_filter(
         }
         let dynamics = &controller.dynamics;
         let inverse_mass = &controller.inverse_mass;
-        if attempt == 0 {
-            response(model, ws, &dynamics.mass_matrix, qd);
-        }
         let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
         let bounds = correction(model, ws, inverse_mass, mass, nonlinear, q).and_then(|()| {
             linear_cells(model, ws, inverse_mass, mass);
+            split.prediction += lap(mark);
             error_bounds(model, ws, inverse_mass, mass, nonlinear, q)
         });
-        let check = match bounds {
-            Ok(()) => certify(model, controller, q, qd),
+        let bounded = bounds.map(|()| certify(model, controller, q, qd));
+        split.bound += lap(mark);
+        let check = match bounded {
+            Ok(check) => check,
             Err(why) => {
                 if attempt == 0 {
                     outcome = TickStatus::Uncertified(why);
                 }
-                if ws.have_last {
-                    // The last tick's margins may be stale: the rows alone first.
-                    ws.have_last = false;
-                } else {
-                    ws.shrink = if ws.shrink.is_finite() {
-                        ws.shrink * SHRINK
-                    } else {
-                        SHRINK
-                    };
-                }
+                let Some(ws) = controller.certified.as_mut() else {
+                    return controller.fallback(InvalidState::NonFiniteModel);
+                };
+                ws.retreat();
                 continue;
             }
         };
-        match (first, check) {
-            (TickStatus::Filtered, Check::Proven) => {
+        match check {
+            Check::Proven => {
                 if let Some(ws) = controller.certified.as_mut() {
                     ws.proven = true;
                 }
                 return TickStatus::Filtered;
             }
-            // The tightened rows had no common point: the predicted rows' command below
-            // (relaxed, and reported so, only if those have none either).
-            (TickStatus::Relaxed, _) => break,
-            (_, Check::Start) if attempt == 0 => {
+            Check::Start if attempt == 0 => {
                 outcome = TickStatus::Uncertified(Uncertified::Start);
             }
-            (_, Check::Below) if attempt == 0 => {
+            Check::Below if attempt == 0 => {
                 outcome = TickStatus::Uncertified(Uncertified::Bound);
             }
             _ => {}

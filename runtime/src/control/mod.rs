@@ -949,6 +949,12 @@ impl Controller {
             .map(|certified| certified.lowest())
     }
 
+    /// [`SafetyMode::Certified`]: where its ticks' time went, summed since the controller
+    /// was made (`None` in the other modes).
+    pub fn certified_split(&self) -> Option<certified::CertifiedSplit> {
+        self.certified.as_ref().map(|certified| certified.split)
+    }
+
     /// Report of the last QP solve (statuses, iterations, relaxed rows).
     pub fn qp_report(&self) -> &QpReport {
         self.qp.report()
@@ -1568,13 +1574,37 @@ fn solve_rows(controller: &mut Controller) -> TickStatus {
     if !(all_finite(&controller.rows) && all_finite(&controller.rhs)) {
         return controller.fallback(InvalidState::NonFiniteModel);
     }
-    let report = controller.qp.solve(
+    let status = controller
+        .qp
+        .solve(
+            &controller.tau_nom,
+            &controller.rows,
+            &controller.rhs,
+            &mut controller.tau,
+        )
+        .status;
+    status_of(controller, status)
+}
+
+/// [`solve_rows`] for a command that is only tried (the certified attempts): where the rows
+/// have no common point the relaxed problem is not solved and the status is `None` (`τ` is
+/// then not a command; the caller computes another).
+fn try_rows(controller: &mut Controller) -> Option<TickStatus> {
+    if !(all_finite(&controller.rows) && all_finite(&controller.rhs)) {
+        return Some(controller.fallback(InvalidState::NonFiniteModel));
+    }
+    let report = controller.qp.solve_strict(
         &controller.tau_nom,
         &controller.rows,
         &controller.rhs,
         &mut controller.tau,
     );
-    match report.status {
+    (report.status == QpStatus::Solved).then_some(TickStatus::Filtered)
+}
+
+/// The tick's status for a QP's: a failed QP leaves the zero command.
+fn status_of(controller: &mut Controller, status: QpStatus) -> TickStatus {
+    match status {
         QpStatus::Solved => TickStatus::Filtered,
         QpStatus::Relaxed => TickStatus::Relaxed,
         QpStatus::Failed => {

@@ -169,6 +169,31 @@ impl SafetyQp {
     /// `m × n`, `b` length `m`) and writes the result into `tau` (length `n`).
     /// Wrong lengths or non-finite input give `Failed` with `tau` all NaN; never panics.
     pub fn solve(&mut self, tau_nom: &[f64], a: &[f64], b: &[f64], tau: &mut [f64]) -> &QpReport {
+        self.solve_with(tau_nom, a, b, tau, true)
+    }
+
+    /// [`SafetyQp::solve`] without the relaxed problem: where the rows have no common point
+    /// (or the hard problem has no verified solution) the result is `Failed`, `tau` all NaN.
+    /// For a caller that has another command to fall back on (the relaxed problem, with
+    /// `n + m` variables, costs far more than the hard one).
+    pub fn solve_strict(
+        &mut self,
+        tau_nom: &[f64],
+        a: &[f64],
+        b: &[f64],
+        tau: &mut [f64],
+    ) -> &QpReport {
+        self.solve_with(tau_nom, a, b, tau, false)
+    }
+
+    fn solve_with(
+        &mut self,
+        tau_nom: &[f64],
+        a: &[f64],
+        b: &[f64],
+        tau: &mut [f64],
+        relax: bool,
+    ) -> &QpReport {
         let (n, m) = (self.n, self.m);
         self.report.relaxed_rows.clear();
         self.report.iterations = 0;
@@ -191,6 +216,7 @@ impl SafetyQp {
         };
         match hard {
             Attempt::Done => self.finish(QpStatus::Solved, a, b, tau),
+            Attempt::Infeasible | Attempt::Failed if !relax => self.fail(tau),
             // Infeasible, or no verified solution: the relaxed problem is always
             // feasible. Its result is used only if it does violate some row (then the
             // rows have no common point, up to `relaxed_row_tol`); otherwise the hard
