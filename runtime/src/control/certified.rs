@@ -153,8 +153,18 @@ pub(super) struct CertifiedWorkspace {
     /// otherwise); cell `c ∈ 0..S` is `[t_c, t_{c+1}]`.
     samples: usize,
     /// Cells in groups that share one pair of jets (the early window's cells a few at a time,
-    /// the rest together).
+    /// the rest together): the fine partition, and a coarse one of fewer, longer groups
+    /// (cheaper, looser) that [`error_bounds`] uses when `coarse` is set.
     groups: Vec<Range<usize>>,
+    coarse_groups: Vec<Range<usize>>,
+    coarse: bool,
+    /// Whether the next attempt tries the coarse partition first: while it proves the
+    /// ticks (short holds), and again after `coarse_wait` fine attempts once it failed (a
+    /// wait that doubles with every failure, from [`COARSE_RETRY`] up to [`COARSE_RETRY_MAX`],
+    /// and halves with every success).
+    coarse_first: bool,
+    ticks_fine: usize,
+    coarse_wait: usize,
     prediction: HoldPrediction,
     stiffness: Vec<f64>,
     /// `g₀ = f₀ + K q₀`.
@@ -227,9 +237,10 @@ pub(super) struct CertifiedWorkspace {
     floor: Vec<f64>,
     margin: Vec<f64>,
     /// Per sample row: how far the last proven lower bound lay below the linear prediction
-    /// (the next first pass's tightening), and the last error bounds (the next fixed
-    /// point's start).
+    /// (the next first pass's tightening), the tightening the rows being bounded were
+    /// written with, and the last error bounds (the next fixed point's start).
     estimate: Vec<f64>,
+    row_estimate: Vec<f64>,
     /// Per barrier: the proven lower bound over the hold of the last command bounded, and
     /// whether the last tick's command is that command, proven.
     lowest: Vec<f64>,
@@ -308,10 +319,16 @@ impl CertifiedWorkspace {
             start = end;
             size *= 2;
         }
+        let coarse_groups = coarse_partition(&groups);
         CertifiedWorkspace {
             nq,
             samples,
             groups,
+            coarse_groups,
+            coarse: false,
+            coarse_first: true,
+            ticks_fine: 0,
+            coarse_wait: COARSE_RETRY,
             prediction: HoldPrediction::new(nq, settings.samples, early),
             stiffness,
             offset: vec![0.0; nq],
@@ -357,6 +374,7 @@ impl CertifiedWorkspace {
             floor: vec![0.0; samples * nb],
             margin: vec![0.0; samples * nb],
             estimate: vec![0.0; samples * nb],
+            row_estimate: vec![0.0; samples * nb],
             lowest: vec![f64::NAN; nb],
             proven: false,
             last_xi: vec![0.0; samples * nq],
@@ -381,6 +399,23 @@ impl CertifiedWorkspace {
             } else {
                 SHRINK
             };
+        }
+    }
+
+    /// Which partition to try first from the next tick on, after `coarse` did (`proven`)
+    /// or did not prove this one.
+    fn note_partition(&mut self, coarse: bool, proven: bool) {
+        if coarse {
+            self.coarse_first = proven;
+            self.ticks_fine = 0;
+            self.coarse_wait = if proven {
+                (self.coarse_wait / 2).max(COARSE_RETRY)
+            } else {
+                (self.coarse_wait * 2).min(COARSE_RETRY_MAX)
+            };
+        } else if !self.coarse_first {
+            self.ticks_fine += 1;
+            self.coarse_first = self.ticks_fine >= self.coarse_wait;
         }
     }
 
@@ -415,6 +450,21 @@ impl CertifiedWorkspace {
         self.time(c + 1) - self.time(c)
     }
 }
+
+/// The coarse partition of the cells: the fine groups joined in runs of [`COARSE_JOIN`]
+/// (the same cells, fewer enclosures, each over a longer stretch of the hold).
+fn coarse_partition(fine: &[Range<usize>]) -> Vec<Range<usize>> {
+    fine.chunks(COARSE_JOIN)
+        .filter_map(|run| Some(run.first()?.start..run.last()?.end))
+        .collect()
+}
+
+/// Fine groups per coarse group.
+const COARSE_JOIN: usize = 4;
+/// After the coarse partition failed to prove a tick, attempts with the fine one before it
+/// is tried first again: at least this many, at most [`COARSE_RETRY_MAX`].
+const COARSE_RETRY: usize = 16;
+const COARSE_RETRY_MAX: usize = 1024;
 
 /// `out = a b` for row-major `n × n` matrices.
 fn product(a: &[f64], b: &[f64], out: &mut [f64], n: usize) {
@@ -546,12 +596,36 @@ fn certified_attempts(
         let dynamics = &controller.dynamics;
         let inverse_mass = &controller.inverse_mass;
         let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
-        let bounds = correction(model, ws, inverse_mass, mass, nonlinear, q).and_then(|()| {
+        let had_last = ws.have_last;
+        let mut bounded = correction(model, ws, inverse_mass, mass, nonlinear, q).map(|()| {
             linear_cells(model, ws, inverse_mass, mass);
             split.prediction += lap(mark);
-            error_bounds(model, ws, inverse_mass, mass, nonlinear, q)
+            Check::Below
         });
-        let bounded = bounds.map(|()| certify(model, controller, q, qd));
+        // The coarse partition first where it has been proving the ticks; where its bound
+        // does not close or does not prove the command, the fine one (the same command,
+        // rows and correction: only the enclosures' grouping differs).
+        if bounded.is_ok() {
+            for coarse in [true, false] {
+                let Some(ws) = controller.certified.as_mut() else {
+                    return controller.fallback(InvalidState::NonFiniteModel);
+                };
+                if coarse && !(ws.coarse_first && ws.coarse_groups != ws.groups) {
+                    continue;
+                }
+                ws.coarse = coarse;
+                let dynamics = &controller.dynamics;
+                let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
+                bounded = error_bounds(model, ws, &controller.inverse_mass, mass, nonlinear, q)
+                    .map(|()| certify(model, controller, q, qd));
+                if let Some(ws) = controller.certified.as_mut() {
+                    ws.note_partition(coarse, bounded == Ok(Check::Proven));
+                }
+                if bounded == Ok(Check::Proven) {
+                    break;
+                }
+            }
+        }
         split.bound += lap(mark);
         let check = match bounded {
             Ok(check) => check,
@@ -562,6 +636,8 @@ fn certified_attempts(
                 let Some(ws) = controller.certified.as_mut() else {
                     return controller.fallback(InvalidState::NonFiniteModel);
                 };
+                // (A coarse pass that proved nothing leaves the margins of its own bound.)
+                ws.have_last = had_last;
                 ws.retreat();
                 continue;
             }
@@ -626,7 +702,7 @@ enum Check {
 fn first_pass_rows(controller: &mut Controller) {
     let (nq, nb) = (controller.nq, controller.nb);
     let scale = controller.gain_scale;
-    let Some(ws) = controller.certified.as_ref() else {
+    let Some(ws) = controller.certified.as_mut() else {
         return;
     };
     let barriers = &controller.barrier_terms;
@@ -639,6 +715,7 @@ fn first_pass_rows(controller: &mut Controller) {
             let row = &mut controller.rows[r * nq..(r + 1) * nq];
             super::forced_row(jacobian_row, forced, nq, row);
             let estimate = if ws.have_last { ws.estimate[r] } else { 0.0 };
+            ws.row_estimate[r] = estimate;
             controller.rhs[r] =
                 ws.floor[r] + estimate - barriers.values()[k] - dot(jacobian_row, free)
                     + dot(row, &ws.offset);
@@ -1168,8 +1245,17 @@ fn error_bounds(
             return Err(failed(Uncertified::Tube, "kappa"));
         }
         ws.damping_share = 1.0 - kappa;
-        for g in 0..ws.groups.len() {
-            let group = ws.groups[g].clone();
+        let count = if ws.coarse {
+            ws.coarse_groups.len()
+        } else {
+            ws.groups.len()
+        };
+        for g in 0..count {
+            let group = if ws.coarse {
+                ws.coarse_groups[g].clone()
+            } else {
+                ws.groups[g].clone()
+            };
             let mut plain = [[Interval::NAN; 4]; 64];
             let mut base = [[Interval::NAN; 3]; 64];
             let mut spread = [[0.0f64; 3]; 64];
@@ -1453,7 +1539,7 @@ fn certify(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) ->
             }
             // The first pass's linear prediction at the command: a·τ − rhs + floor + estimate.
             let row = &controller.rows[r * nq..(r + 1) * nq];
-            let old = if ws.have_last { ws.estimate[r] } else { 0.0 };
+            let old = ws.row_estimate[r];
             let linear = dot(row, &controller.tau) - controller.rhs[r] + ws.floor[r] + old;
             ws.estimate[r] = ((linear - lower) * ESTIMATE_INFLATION).max(0.0);
         }
