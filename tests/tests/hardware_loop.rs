@@ -166,7 +166,7 @@ fn run_with_timeout(
     // refusal of such a rate is tested in runtime/tests/bus_check_cli.rs.
     settings.rate_rule = RateRule::Overrun;
     let mut log = MemoryLog::default();
-    let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.n_servos()).unwrap());
+    let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.hardware()).unwrap());
     let never = AtomicBool::new(false);
     let mut tee = Tee {
         memory: &mut log,

@@ -10,6 +10,7 @@ use std::sync::OnceLock;
 use rand::RngExt;
 use softcbf::hardware::description::Hardware;
 use softcbf::hardware::emulator::SensorNoise;
+use softcbf::hardware::log_description::LogDescription;
 use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, Tick, write_log};
 use softcbf::identify::{
     ExperimentKind, Identification, IdentifyArgs, Options, Parameter, Status, hardware_of,
@@ -123,6 +124,7 @@ fn expected<'a>(robot: &'a Robot, hardware: &'a Hardware) -> Expected<'a> {
         file: &robot.source,
         nq: 3 * robot.modules.len(),
         hardware,
+        description: LogDescription::of(robot, hardware),
     }
 }
 
@@ -515,8 +517,8 @@ fn base_log() -> &'static Path {
     })
 }
 
-/// A copy of the base log in `dir/run` with `edit` applied to its CSV lines and
-/// `summary` to its summary text.
+/// A copy of the base log in `dir/run` (with its `hardware.json`) with `edit` applied to
+/// its CSV lines and `summary` to its summary text.
 fn edited_log(
     dir: &Path,
     edit: impl Fn(usize, &str) -> String,
@@ -533,6 +535,7 @@ fn edited_log(
     std::fs::write(run.join("trajectory.csv"), lines.join("\n") + "\n").unwrap();
     let json = std::fs::read_to_string(base_log().join("summary.json")).unwrap();
     std::fs::write(run.join("summary.json"), summary(&json)).unwrap();
+    std::fs::copy(base_log().join("hardware.json"), run.join("hardware.json")).unwrap();
     run
 }
 
@@ -705,6 +708,75 @@ fn bad_logs_are_refused_naming_file_line_and_column_and_nothing_is_written() {
         error.contains("from a different robot: the log has 5 coordinates"),
         "{error}"
     );
+
+    // Another hardware description under the same name: a zero angle edited in the
+    // log's hardware.json; and a log without one.
+    let dir = out_dir("bad-robot-zero-angle");
+    let log = edited_log(&dir, same, keep);
+    let description = std::fs::read_to_string(log.join("hardware.json")).unwrap();
+    let edited = description.replacen("180.0", "170.0", 1);
+    assert_ne!(edited, description);
+    std::fs::write(log.join("hardware.json"), edited).unwrap();
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains(
+            "run/hardware.json: from a different robot: the log was taken with \
+             hardware.module[1].zero_angle_deg[1] = 170, "
+        ),
+        "{error}"
+    );
+    assert!(error.contains("hardware-example.toml has 180"), "{error}");
+    let dir = out_dir("bad-robot-no-description");
+    let log = edited_log(&dir, same, keep);
+    std::fs::remove_file(log.join("hardware.json")).unwrap();
+    let error = refused(&dir, vec![log]);
+    assert!(
+        error.contains("run/hardware.json: not found: this log does not say which hardware"),
+        "{error}"
+    );
+}
+
+/// The issue's case: logs taken with one tendon turned the other way (`direction`) under
+/// the same robot name, given to `identify` with the robot file that has it the usual way.
+/// Read as that file's, their currents pull where the servo pushed: today's identify
+/// fitted them without a word (κL 220 N/m against a true 240, R² 0.74). They are refused,
+/// naming the field, both values and the log's file; with the file they were taken with
+/// they identify as any other.
+#[test]
+fn logs_taken_with_another_tendon_direction_are_refused() {
+    let dir = out_dir("direction");
+    let text = std::fs::read_to_string(robots::path("hardware-example.toml")).unwrap();
+    let turned = text.replacen("direction = [1, -1, 1]", "direction = [1, 1, 1]", 1);
+    assert_ne!(turned, text);
+    let turned_file = out_dir("direction-file").join("rewired.toml");
+    std::fs::write(&turned_file, &turned).unwrap();
+    let turned_model = Model::new(Robot::load(&turned_file).unwrap()).unwrap();
+    assert_eq!(turned_model.robot.name, "hardware-example");
+    let mut run = SyntheticRun::new(&turned_model, &turned_model, 100.0, 12.0);
+    run.kind = Some(ExperimentKind::Static);
+    write_log(&dir.join("run"), &run, static_schedule(4, 3.0, 11)).unwrap();
+
+    let error = refused(&dir, vec![dir.join("run")]);
+    assert!(
+        error.contains(
+            "run/hardware.json: from a different robot: the log was taken with \
+             hardware.module[1].direction[2] = 1, "
+        ),
+        "{error}"
+    );
+    assert!(
+        error.contains("hardware-example.toml has -1") && error.contains("rewired.toml"),
+        "{error}"
+    );
+
+    // With the file it was taken with, the log is read.
+    let hardware = hardware_of(&turned_model.robot).unwrap();
+    let logs = read_logs(
+        &[dir.join("run")],
+        &expected(&turned_model.robot, &hardware),
+    )
+    .unwrap();
+    assert_eq!(logs[0].readings(), 1201);
 }
 
 /// The accuracy against the loop rate and the filter's half-width, on exact readings (a

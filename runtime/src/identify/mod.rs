@@ -5,7 +5,7 @@
 //! currents that pull) is linear in the unknowns of each module: `κθ, κL, βθ, βL` and the
 //! three actuator gains `g_k`. Masses and geometry are the robot file's.
 //!
-//! - [`logs`]: `trajectory.csv` and `summary.json` read and checked.
+//! - [`logs`]: `trajectory.csv`, `summary.json` and `hardware.json` read and checked.
 //! - [`filter`]: one smooth kernel applied to both sides of the equation ("filtered
 //!   differentiation" without differentiating data: the derivatives move onto the kernel).
 //! - `rows`, `regression`, `estimate`: the stacked weighted least-squares problem, reduced
@@ -55,6 +55,7 @@ use clap::Args;
 use softcbf_description::robot::{Robot, RobotError};
 
 use crate::hardware::description::{self, Hardware};
+use crate::hardware::log_description::{DescriptionError, LogDescription};
 use crate::model::{Model, ModelError};
 use crate::output::Console;
 
@@ -220,6 +221,9 @@ pub enum IdentifyError {
         /// What differs.
         what: String,
     },
+    /// A log's `hardware.json` missing or unreadable.
+    #[error(transparent)]
+    Description(#[from] DescriptionError),
     /// The robot file is not valid.
     #[error(transparent)]
     Robot(#[from] RobotError),
@@ -406,8 +410,9 @@ pub fn hardware_of(robot: &Robot) -> Result<Hardware, IdentifyError> {
     })
 }
 
-/// Reads the run directories `dirs` as logs of `robot` (its name, coordinates and servos
-/// must match): [`read_logs`] with what `robot` says a log must have.
+/// Reads the run directories `dirs` as logs of `robot` (its name, coordinates, servos and
+/// the hardware description each log was taken with must match): [`read_logs`] with what
+/// `robot` says a log must have.
 pub fn read_logs_for(robot: &Robot, dirs: &[PathBuf]) -> Result<Vec<Log>, IdentifyError> {
     let hardware = hardware_of(robot)?;
     let expected = logs::Expected {
@@ -415,6 +420,7 @@ pub fn read_logs_for(robot: &Robot, dirs: &[PathBuf]) -> Result<Vec<Log>, Identi
         file: &robot.source,
         nq: 3 * robot.modules.len(),
         hardware: &hardware,
+        description: LogDescription::of(robot, &hardware),
     };
     read_logs(dirs, &expected)
 }
