@@ -1,7 +1,8 @@
 //! The calibration walk-through of docs/hardware.md end to end: both identification
 //! experiments at 100 Hz against the emulator's factory preset (latency timer tuned to
 //! 1 ms) moving `robots/calibration-true.toml`, then `softcbf identify`, compared with the
-//! numbers of that file and with the standard errors it reports.
+//! numbers of that file, with the standard errors it reports and with the `[uncertainty]`
+//! it writes.
 
 mod common;
 
@@ -162,5 +163,37 @@ fn the_walk_through_finds_the_true_robot() {
         beyond_two.len() <= 2,
         "beyond two standard errors: {beyond_two:?}"
     );
+    // The identified file's [uncertainty] comes from these standard errors: it covers the
+    // true plant around the written numbers; stiffness far narrower than the input's ±10 %,
+    // damping (the least certain, 3 σ of module 1's βθ, about 8 %) no wider than 15 %.
+    let declared = Robot::load(&identified).unwrap().uncertainty;
+    println!(
+        "identified [uncertainty]: stiffness {}, damping {}, mass {}, force {}",
+        declared.stiffness, declared.damping, declared.mass, declared.force
+    );
+    assert!(
+        declared.stiffness < 0.03 && declared.damping < 0.15,
+        "{declared:?}"
+    );
+    for (module, (t, f)) in truth.iter().zip(&found).enumerate() {
+        for (k, bound) in [
+            declared.stiffness,
+            declared.stiffness,
+            declared.damping,
+            declared.damping,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            assert!(
+                (t[k] / f[k] - 1.0).abs() <= bound,
+                "module {} {}: the true {} lies outside {} ± {bound}",
+                module + 1,
+                names[k],
+                t[k],
+                f[k]
+            );
+        }
+    }
     assert!(dir.join("identify.png").exists());
 }

@@ -15,7 +15,8 @@
 //!   systematic parts.
 //! - `holdout`, [`figure`]: the last 20 % of each dynamic log predicted by the plant with
 //!   the identified numbers and with the file's.
-//! - [`output`]: the identified robot file, the input with only those numbers changed.
+//! - [`output`]: the identified robot file, the input with only those numbers changed and
+//!   an `[uncertainty]` table from the standard errors ([`bounds`]).
 //! - [`synthetic`]: logs of a simulated robot, for tests and benchmarks.
 //!
 //! Why this filter: a log's readings are quantized and noisy, so `q̇`, `q̈` are never formed
@@ -36,6 +37,7 @@
 //! faster than readings 30 ms apart resolve. Run the dynamic experiment at 100 Hz where the
 //! bus allows; a slower log gets a note in the report.
 
+pub mod bounds;
 pub mod figure;
 pub mod filter;
 pub mod holdout;
@@ -327,6 +329,8 @@ pub struct Identification {
     pub rows: [usize; 2],
     /// The filter's half-width \[s\].
     pub half_width: f64,
+    /// The median interval between readings over all logs \[s\].
+    pub period: f64,
     /// The timing uncertainty of the systematic part \[s\] (`None`: no systematic part).
     pub timing_uncertainty: Option<f64>,
     /// Share of each dynamic log held out.
@@ -578,6 +582,7 @@ pub fn identify(
         rest_states: built.rest_states,
         rows: built.rows,
         half_width,
+        period,
         timing_uncertainty: options
             .systematic
             .then_some(options.timing_uncertainty.max(0.0)),
@@ -712,6 +717,18 @@ pub fn run(args: IdentifyArgs, console: &mut Console) -> Result<u8, String> {
     for line in identification.report() {
         console.say(&line);
     }
+    let bounds = output::identified_bounds(&robot, &identification);
+    console.say(&format!(
+        "[uncertainty] written: stiffness {}, damping {} ({} standard errors of the least \
+         certain identified number of each kind); mass {}, force {} N (not measured: the \
+         input's); each line's comment in {} says where it came from",
+        bounds.stiffness.value,
+        bounds.damping.value,
+        bounds::K_SIGMA,
+        bounds.mass.value,
+        bounds.force.value,
+        args.out.display()
+    ));
     console.say(&format!("wrote {}", written.join(", ")));
     if let Some(error) = console.error() {
         eprintln!("error: {error}");
