@@ -286,9 +286,13 @@ pub const LOAD_FAULTS: [&str; 3] = [
 /// the run unsafe (a relaxed tick is not filtered); tests of something else (signals, lost
 /// output) accept that verdict until the filter meets those rows (issue 29).
 pub fn unsafe_only_by_relaxed_ticks(output: &str) -> bool {
+    // The verdict line, or (standard output lost) the error line that repeats it.
     output
         .lines()
-        .find_map(|line| line.strip_prefix("verdict: UNSAFE: "))
+        .find_map(|line| {
+            line.strip_prefix("verdict: UNSAFE: ")
+                .or_else(|| line.strip_prefix("error: unsafe run: "))
+        })
         .is_some_and(|why| {
             why.split("; ")
                 .all(|reason| reason.contains("ticks relaxed barrier rows"))
