@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use softcbf::hardware::log_description::LogDescription;
 use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, write_log};
 use softcbf::identify::{
     ExperimentKind, Options, hardware_of, identify, logs::Expected, read_logs,
@@ -71,6 +72,7 @@ fn one_hour(c: &mut Criterion) {
         file: &robot.source,
         nq: model.nq(),
         hardware: &hardware,
+        description: LogDescription::of(&robot, &hardware),
     };
     let options = Options::default();
     let logs = read_logs(&dirs, &expected).unwrap();

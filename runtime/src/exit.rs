@@ -2,7 +2,8 @@
 //! can tell a safe run from an unsafe one, a fault, and a run that never started; and what
 //! each means for each command, the table the docs show ([`table`]).
 
-/// Done, and safe: every barrier stayed above the threshold and every tick was valid.
+/// Done, and safe: every barrier stayed above the threshold and every tick was valid and
+/// filtered, its barrier rows met (none relaxed).
 pub const OK: u8 = 0;
 /// Not done, or not all of it: a bad file, setting or port, a loop rate the bus cannot hold
 /// (measured before torque on), a safe start that refused, a run that completed no tick, a
@@ -11,7 +12,8 @@ pub const ERROR: u8 = 1;
 /// The command line could not be read (unknown option, missing value).
 pub const USAGE: u8 = 2;
 /// Done, but not safe: a barrier fell below the threshold, or ticks had an invalid state,
-/// no verified command (the zero command was applied) or no filter, or deadlines were
+/// no verified command (the zero command was applied), no filter or relaxed barrier rows
+/// (rows with no common point), or deadlines were
 /// missed beyond the allowed fraction, or a model value was not finite.
 pub const UNSAFE: u8 = 3;
 /// A hardware run stopped on a fault: communication lost, a servo's hardware error, the
@@ -43,8 +45,8 @@ pub const MEANINGS: [(u8, [&str; 4]); 5] = [
     (
         OK,
         [
-            "safe: every tick filtered with a verified command at a valid state, every \
-             recorded barrier at or above `--barrier-threshold` (default −1 mm)",
+            "safe: every tick filtered with a verified command at a valid state, no barrier \
+             row relaxed, every recorded barrier at or above `--barrier-threshold` (default −1 mm)",
             "every run safe (each judged as `simulate` judges it)",
             "safe as for `simulate`, at the states read, with at most `--max-overrun-fraction` \
              (default 5 %) of the deadlines and of the holds missed",
@@ -78,7 +80,8 @@ pub const MEANINGS: [(u8, [&str; 4]); 5] = [
         [
             "unsafe: a barrier below the threshold, a recorded row or a tick with an invalid \
              state, a failed QP (the zero command applied), ticks without the filter \
-             (`--no-filter`), the run stopped early",
+             (`--no-filter`), ticks whose barrier rows were relaxed (no common point), the \
+             run stopped early",
             "a run of the batch or shard unsafe (the report counts them)",
             "unsafe as for `simulate`, or more deadlines or holds missed than \
              `--max-overrun-fraction` allows",

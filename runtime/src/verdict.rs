@@ -1,9 +1,9 @@
 //! One verdict per run, whichever command computes it: `softcbf simulate`, `verify` (each
 //! row of a batch), `verify replay` and `run` describe what a run did as an [`Outcome`] and
 //! ask [`judge`] whether it was safe. The verdict depends on what happened (the lowest
-//! barrier, ticks with an invalid state, without a verified command or without the
-//! filter, rows whose barriers were not numbers, a run that stopped early, missed
-//! deadlines), never on which safety mode or command produced it.
+//! barrier, ticks with an invalid state, without a verified command, without the filter
+//! or whose barrier rows were relaxed, rows whose barriers were not numbers, a run that
+//! stopped early, missed deadlines), never on which safety mode or command produced it.
 //!
 //! A hardware run can also end on a fault (communication lost, a servo's error, a
 //! torque-off not confirmed): [`crate::hardware::run_outcome`] decides those first and
@@ -54,7 +54,8 @@ pub struct Outcome<'a> {
     pub failed_ticks: u64,
     /// Ticks run without the safety filter (plain PD+).
     pub unfiltered_ticks: u64,
-    /// Ticks whose QP relaxed barrier rows (reported; not unsafe by itself).
+    /// Ticks whose QP relaxed barrier rows: their rows had no common point, so the command
+    /// applied did not satisfy them all (unsafe: "safe" means every tick was filtered).
     pub relaxed_ticks: u64,
     /// Why the run ended before its duration (a failed plant integration), if it did.
     pub stopped: Option<&'a str>,
@@ -89,8 +90,8 @@ pub const DEFAULT_MAX_OVERRUN_FRACTION: f64 = 0.05;
 /// What a run's outcome means.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Verdict {
-    /// Done, every tick filtered with a verified command on a valid state, every barrier
-    /// above the threshold, deadlines kept.
+    /// Done, every tick filtered with a verified command on a valid state and every barrier
+    /// row met (none relaxed), every barrier above the threshold, deadlines kept.
     Safe,
     /// Done, but not safe; the reasons, joined by `; `.
     Unsafe(String),
@@ -178,6 +179,13 @@ pub fn judge(outcome: &Outcome<'_>, limits: &Limits) -> Verdict {
             outcome.unfiltered_ticks, outcome.ticks
         ));
     }
+    if outcome.relaxed_ticks > 0 {
+        reasons.push(format!(
+            "{} of {} ticks relaxed barrier rows (the rows had no common point: the command \
+             applied did not meet them all)",
+            outcome.relaxed_ticks, outcome.ticks
+        ));
+    }
     if let Some(why) = outcome.stopped {
         reasons.push(format!("the run stopped early: {why}"));
     }
@@ -229,18 +237,18 @@ mod tests {
             invalid_ticks: 0,
             failed_ticks: 0,
             unfiltered_ticks: 0,
-            relaxed_ticks: 3,
+            relaxed_ticks: 0,
             stopped: None,
             overruns: None,
         }
     }
 
     #[test]
-    fn every_way_of_being_unsafe_is_named_and_relaxed_rows_alone_are_not_one() {
+    fn every_way_of_being_unsafe_is_named() {
         let limits = Limits::new(-1e-3);
         assert_eq!(judge(&safe_outcome(), &limits), Verdict::Safe);
         type Change = dyn Fn(&mut Outcome<'static>);
-        let cases: [(&Change, &str); 7] = [
+        let cases: [(&Change, &str); 8] = [
             (&|o| o.lowest.value = -2e-3, "lowest barrier -2.000e-3 m"),
             (
                 &|o| o.lowest.value = f64::NEG_INFINITY,
@@ -262,6 +270,10 @@ mod tests {
             (
                 &|o| o.unfiltered_ticks = 100,
                 "100 of 100 ticks ran without",
+            ),
+            (
+                &|o| o.relaxed_ticks = 3,
+                "3 of 100 ticks relaxed barrier rows",
             ),
         ];
         for (change, words) in cases {

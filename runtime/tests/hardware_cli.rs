@@ -535,8 +535,14 @@ fn late_replies_slow_the_loop_but_never_pass_for_a_safe_run() {
                 lowest >= -1e-3,
                 "exit 0 with a lowest barrier of {lowest} m"
             ),
-            // Or the loop said why it was not: unsafe, or too slow.
-            3 => assert!(lowest < -1e-3 || stdout.contains("fell back")),
+            // Or the loop said why it was not: unsafe (a barrier, fallbacks, or relaxed
+            // rows: not every tick filtered), or too slow.
+            3 => assert!(
+                lowest < -1e-3
+                    || stdout.contains("fell back")
+                    || stdout.contains("ticks relaxed barrier rows"),
+                "{stdout}"
+            ),
             4 => assert!(LOAD_FAULTS.iter().any(|w| stdout.contains(w)), "{stdout}"),
             other => panic!("--delay-ms {delay}: exit {other}\n{stdout}\n{stderr}"),
         }

@@ -166,7 +166,7 @@ fn run_with_timeout(
     // refusal of such a rate is tested in runtime/tests/bus_check_cli.rs.
     settings.rate_rule = RateRule::Overrun;
     let mut log = MemoryLog::default();
-    let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.n_servos()).unwrap());
+    let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.hardware()).unwrap());
     let never = AtomicBool::new(false);
     let mut tee = Tee {
         memory: &mut log,
@@ -525,9 +525,9 @@ fn missed_deadlines_are_in_the_verdict() {
         verdict.line().contains("ticks overran their deadline"),
         "{verdict:?}"
     );
-    // Allowed by the operator, the same run is judged on its barriers alone (whether they
-    // held depends on the load: every command stays in force longer than the hold it was
-    // computed for, which the guarantee does not cover).
+    // Allowed by the operator, the same run is judged on its barriers and rows alone
+    // (whether they held depends on the load: every command stays in force longer than the
+    // hold it was computed for, which the guarantee does not cover).
     let all_allowed = Limits {
         max_overrun_fraction: 1.0,
         ..limits
@@ -537,9 +537,15 @@ fn missed_deadlines_are_in_the_verdict() {
         !verdict.line().contains("overran"),
         "overruns allowed: {verdict:?}"
     );
-    if min_barrier(&out.log) >= -1e-3 {
+    // Relaxed ticks (rows without a common point: 28 of 29 in one run on a loaded machine)
+    // make it unsafe too.
+    if min_barrier(&out.log) >= -1e-3 && s.relaxed == 0 {
         assert_eq!(verdict, Verdict::Safe);
     } else {
-        assert!(verdict.line().contains("lowest barrier"), "{verdict:?}");
+        assert!(
+            verdict.line().contains("lowest barrier")
+                || verdict.line().contains("ticks relaxed barrier rows"),
+            "{verdict:?}"
+        );
     }
 }

@@ -667,7 +667,7 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         .open()
         .map_err(|e| format!("--port: cannot open {}: {e}", args.port))?;
     let mut bus = Bus::new(port, Duration::from_secs_f64(hardware.reply_timeout));
-    let log = super::log::open(&args.out, &model, map.n_servos())?;
+    let log = super::log::open(&args.out, &model, map.hardware())?;
     console.say(&format!(
         "softcbf run: `{}` on {} at {} bit/s, {}",
         robot.name,

@@ -1,9 +1,12 @@
 //! What `softcbf run` logs: one [`Row`] per tick into a [`RunLog`], streamed to
-//! `trajectory.csv` (the `simulate` columns plus [`extra_columns`]), then the figures.
+//! `trajectory.csv` (the `simulate` columns plus [`extra_columns`]), beside it the hardware
+//! description it was taken with (`hardware.json`, [`LogDescription`]), then the figures.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
+use crate::hardware::description::Hardware;
+use crate::hardware::log_description::LogDescription;
 use crate::model::Model;
 use crate::plot::{FigureOptions, write_figures};
 use crate::record::{Columns, CsvWriter, Record, Row, as_strs, coordinate_names};
@@ -97,8 +100,13 @@ impl RunLog for CsvLog {
     }
 }
 
-/// Creates `dir/trajectory.csv` for a run of `model` on `servos` servos.
-pub fn open(dir: &Path, model: &Model, servos: usize) -> Result<CsvLog, String> {
+/// Writes `dir/hardware.json`, the description of `model`'s robot driven through
+/// `hardware` (with the run's overrides), and creates `dir/trajectory.csv` for the run.
+pub fn open(dir: &Path, model: &Model, hardware: &Hardware) -> Result<CsvLog, String> {
+    LogDescription::of(&model.robot, hardware)
+        .write(dir)
+        .map_err(|e| e.to_string())?;
+    let servos = 3 * hardware.modules.len();
     let names = extra_columns(servos, &coordinate_names(model.nq()));
     let columns = Columns::for_model(model, &as_strs(&names)).map_err(|e| e.to_string())?;
     let path = dir.join("trajectory.csv");

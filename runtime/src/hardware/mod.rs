@@ -11,6 +11,7 @@
 //!   adapter's latency timer.
 //! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`run_settings`] what it
 //!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures;
+//!   [`log_description`] the hardware description a log was taken with (`hardware.json`);
 //!   [`status_line`] the live line on the terminal.
 //! - [`experiment`]: the identification experiments of `softcbf run --experiment` (static
 //!   tension sets held to rest, multisines), whose tensions pass through the filter;
@@ -25,6 +26,7 @@ pub mod emulator;
 pub mod experiment;
 pub mod limits;
 pub mod log;
+pub mod log_description;
 pub mod mapping;
 pub mod next_step;
 pub mod run_loop;

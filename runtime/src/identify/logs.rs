@@ -1,7 +1,9 @@
 //! Reading the logs of `softcbf run` for identification: the columns it needs from
-//! `trajectory.csv` (readings, their sampling times, goal currents and when they landed)
-//! and the robot's name from `summary.json`, each checked, with errors naming file, line
-//! and column.
+//! `trajectory.csv` (readings, their sampling times, goal currents and when they landed),
+//! the robot's name from `summary.json` and the hardware description the log was taken
+//! with from `hardware.json` (which must be the robot file's: a log whose servo
+//! directions, zero angles or tendon angles differ means other tensions and another `q`
+//! for the same numbers), each checked, with errors naming file, line and column.
 //!
 //! Only the needed columns are parsed (a 100 Hz hour of the example robot is 360 000 rows
 //! of 80 columns; the others are skipped unparsed), streaming, one line at a time.
@@ -11,6 +13,7 @@ use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 use crate::hardware::description::Hardware;
+use crate::hardware::log_description::LogDescription;
 use crate::hardware::run_loop::command_wire_time;
 use crate::record::{TIME, coordinate_names};
 
@@ -123,6 +126,9 @@ pub struct Expected<'a> {
     pub nq: usize,
     /// The hardware description (servo count, current unit).
     pub hardware: &'a Hardware,
+    /// What a log's `hardware.json` must say: [`LogDescription::of`] the robot and
+    /// `hardware`.
+    pub description: LogDescription,
 }
 
 /// Reads every log directory, in the order given (each file in parallel chunks).
@@ -133,8 +139,9 @@ pub fn read_logs(dirs: &[PathBuf], expected: &Expected<'_>) -> Result<Vec<Log>, 
     dirs.iter().map(|dir| read_log(dir, expected)).collect()
 }
 
-/// Reads one run directory: `summary.json` (if present: the robot's name and the
-/// experiment) and `trajectory.csv`.
+/// Reads one run directory: `hardware.json` (required: the hardware description the log was
+/// taken with, which must be the robot's), `summary.json` (if present: the robot's name
+/// and the experiment) and `trajectory.csv`.
 pub fn read_log(dir: &Path, expected: &Expected<'_>) -> Result<Log, IdentifyError> {
     let file = dir.join("trajectory.csv");
     if !dir.is_dir() {
@@ -148,11 +155,32 @@ pub fn read_log(dir: &Path, expected: &Expected<'_>) -> Result<Log, IdentifyErro
             dir: dir.to_path_buf(),
         });
     }
+    let baud = read_description(dir, expected)?;
     let kind = read_summary(dir, expected)?;
-    let mut log = read_trajectory(&file, expected, CHUNK_BYTES)?;
+    let mut log = read_trajectory(&file, expected, baud, CHUNK_BYTES)?;
     log.dir = dir.to_path_buf();
     log.kind = kind;
     Ok(log)
+}
+
+/// Checks `dir/hardware.json` against the robot's description; returns the run's baud rate
+/// (commands were timed on the wire at it).
+fn read_description(dir: &Path, expected: &Expected<'_>) -> Result<u32, IdentifyError> {
+    let log = LogDescription::read(dir)?;
+    if let Some(difference) = log.first_difference(&expected.description) {
+        return Err(IdentifyError::DifferentRobot {
+            file: dir.join(crate::hardware::log_description::FILE_NAME),
+            what: format!(
+                "the log was taken with {} = {}, {} has {}; its readings and currents mean                  other lengths and tensions under this file (identify with the robot file                  the log was taken with, {})",
+                difference.field,
+                difference.log,
+                expected.file.display(),
+                difference.robot,
+                log.robot_file
+            ),
+        });
+    }
+    Ok(log.baud)
 }
 
 /// The experiment of `dir/summary.json`, after checking its robot's name; `None` when
@@ -219,10 +247,11 @@ fn is_coordinate_column(name: &str) -> bool {
     })
 }
 
-/// Reads the needed columns of a `trajectory.csv`.
+/// Reads the needed columns of a `trajectory.csv` of a run at `baud` [bit/s].
 fn read_trajectory(
     file: &Path,
     expected: &Expected<'_>,
+    baud: u32,
     chunk_bytes: u64,
 ) -> Result<Log, IdentifyError> {
     let io = |error: std::io::Error| IdentifyError::Io {
@@ -320,7 +349,7 @@ fn read_trajectory(
         width,
         nq: expected.nq,
         register_end: f64::from(i16::MAX) * expected.hardware.current_unit * (1.0 - 1e-9),
-        wire: command_wire_time(servos, expected.hardware.baud),
+        wire: command_wire_time(servos, baud),
     };
     let size = std::fs::metadata(file).map_err(io)?.len();
     let ranges = chunk_ranges(file, header_end, size, chunk_bytes.max(1)).map_err(io)?;
@@ -692,10 +721,11 @@ mod tests {
             file: path,
             nq: 6,
             hardware: &hardware,
+            description: LogDescription::of(&model.robot, &hardware),
         };
         let file = dir.join("trajectory.csv");
-        let whole = read_trajectory(&file, &expected, CHUNK_BYTES).unwrap();
-        let pieces = read_trajectory(&file, &expected, 700).unwrap();
+        let whole = read_trajectory(&file, &expected, hardware.baud, CHUNK_BYTES).unwrap();
+        let pieces = read_trajectory(&file, &expected, hardware.baud, 700).unwrap();
         assert_eq!(whole.readings(), 101);
         assert_eq!(whole.line[100], 102);
         assert_eq!(
@@ -725,7 +755,7 @@ mod tests {
             .collect();
         std::fs::write(&file, broken.join("\n")).unwrap();
         for chunk in [CHUNK_BYTES, 700, 5000] {
-            let error = read_trajectory(&file, &expected, chunk)
+            let error = read_trajectory(&file, &expected, hardware.baud, chunk)
                 .unwrap_err()
                 .to_string();
             assert!(

@@ -5,7 +5,7 @@
 //! currents that pull) is linear in the unknowns of each module: `κθ, κL, βθ, βL` and the
 //! three actuator gains `g_k`. Masses and geometry are the robot file's.
 //!
-//! - [`logs`]: `trajectory.csv` and `summary.json` read and checked.
+//! - [`logs`]: `trajectory.csv`, `summary.json` and `hardware.json` read and checked.
 //! - [`filter`]: one smooth kernel applied to both sides of the equation ("filtered
 //!   differentiation" without differentiating data: the derivatives move onto the kernel).
 //! - `rows`, `regression`, `estimate`: the stacked weighted least-squares problem, reduced
@@ -15,7 +15,8 @@
 //!   systematic parts.
 //! - `holdout`, [`figure`]: the last 20 % of each dynamic log predicted by the plant with
 //!   the identified numbers and with the file's.
-//! - [`output`]: the identified robot file, the input with only those numbers changed.
+//! - [`output`]: the identified robot file, the input with only those numbers changed and
+//!   an `[uncertainty]` table from the standard errors ([`bounds`]).
 //! - [`synthetic`]: logs of a simulated robot, for tests and benchmarks.
 //!
 //! Why this filter: a log's readings are quantized and noisy, so `q̇`, `q̈` are never formed
@@ -36,6 +37,7 @@
 //! faster than readings 30 ms apart resolve. Run the dynamic experiment at 100 Hz where the
 //! bus allows; a slower log gets a note in the report.
 
+pub mod bounds;
 pub mod figure;
 pub mod filter;
 pub mod holdout;
@@ -55,6 +57,7 @@ use clap::Args;
 use softcbf_description::robot::{Robot, RobotError};
 
 use crate::hardware::description::{self, Hardware};
+use crate::hardware::log_description::{DescriptionError, LogDescription};
 use crate::model::{Model, ModelError};
 use crate::output::Console;
 
@@ -220,6 +223,9 @@ pub enum IdentifyError {
         /// What differs.
         what: String,
     },
+    /// A log's `hardware.json` missing or unreadable.
+    #[error(transparent)]
+    Description(#[from] DescriptionError),
     /// The robot file is not valid.
     #[error(transparent)]
     Robot(#[from] RobotError),
@@ -323,6 +329,8 @@ pub struct Identification {
     pub rows: [usize; 2],
     /// The filter's half-width \[s\].
     pub half_width: f64,
+    /// The median interval between readings over all logs \[s\].
+    pub period: f64,
     /// The timing uncertainty of the systematic part \[s\] (`None`: no systematic part).
     pub timing_uncertainty: Option<f64>,
     /// Share of each dynamic log held out.
@@ -406,8 +414,9 @@ pub fn hardware_of(robot: &Robot) -> Result<Hardware, IdentifyError> {
     })
 }
 
-/// Reads the run directories `dirs` as logs of `robot` (its name, coordinates and servos
-/// must match): [`read_logs`] with what `robot` says a log must have.
+/// Reads the run directories `dirs` as logs of `robot` (its name, coordinates, servos and
+/// the hardware description each log was taken with must match): [`read_logs`] with what
+/// `robot` says a log must have.
 pub fn read_logs_for(robot: &Robot, dirs: &[PathBuf]) -> Result<Vec<Log>, IdentifyError> {
     let hardware = hardware_of(robot)?;
     let expected = logs::Expected {
@@ -415,6 +424,7 @@ pub fn read_logs_for(robot: &Robot, dirs: &[PathBuf]) -> Result<Vec<Log>, Identi
         file: &robot.source,
         nq: 3 * robot.modules.len(),
         hardware: &hardware,
+        description: LogDescription::of(robot, &hardware),
     };
     read_logs(dirs, &expected)
 }
@@ -572,6 +582,7 @@ pub fn identify(
         rest_states: built.rest_states,
         rows: built.rows,
         half_width,
+        period,
         timing_uncertainty: options
             .systematic
             .then_some(options.timing_uncertainty.max(0.0)),
@@ -706,6 +717,18 @@ pub fn run(args: IdentifyArgs, console: &mut Console) -> Result<u8, String> {
     for line in identification.report() {
         console.say(&line);
     }
+    let bounds = output::identified_bounds(&robot, &identification);
+    console.say(&format!(
+        "[uncertainty] written: stiffness {}, damping {} ({} standard errors of the least \
+         certain identified number of each kind); mass {}, force {} N (not measured: the \
+         input's); each line's comment in {} says where it came from",
+        bounds.stiffness.value,
+        bounds.damping.value,
+        bounds::K_SIGMA,
+        bounds.mass.value,
+        bounds.force.value,
+        args.out.display()
+    ));
     console.say(&format!("wrote {}", written.join(", ")));
     if let Some(error) = console.error() {
         eprintln!("error: {error}");

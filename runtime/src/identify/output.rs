@@ -1,12 +1,14 @@
 //! What `softcbf identify` writes and prints: the robot file with only the identified
-//! numbers changed (a text-preserving edit with `toml_edit`, a comment line on each), checked
-//! by reading it back before it replaces anything; and the report.
+//! numbers and the `[uncertainty]` table changed (a text-preserving edit with `toml_edit`, a
+//! comment line on each; the table's bounds from [`super::bounds`]), checked by reading it
+//! back before it replaces anything; and the report.
 
 use std::path::{Path, PathBuf};
 
 use softcbf_description::robot::Robot;
 use toml_edit::{Array, DocumentMut, Item, Table, Value};
 
+use super::bounds::{Bounds, K_SIGMA, bounds};
 use super::{Identification, IdentifyError, PER_MODULE, Parameter, Status, hardware_of};
 
 /// Refuses an `--out` that is the robot file itself (the input would be lost).
@@ -216,12 +218,65 @@ pub fn render(text: &str, robot: &Robot, id: &Identification) -> Result<String, 
         };
         set(table, "actuator_gain", value, &comment);
     }
+    write_uncertainty(&mut doc, &identified_bounds(robot, id), &origin)
+        .map_err(|message| invalid(message.into()))?;
     Ok(doc.to_string())
 }
 
-/// Checks that `parsed` (the rendered file) is `robot` with exactly the numbers of `id`.
+/// The `[uncertainty]` table written for `id` of `robot`.
+pub fn identified_bounds(robot: &Robot, id: &Identification) -> Bounds {
+    bounds(id, &|j| written(id, j), &robot.uncertainty)
+}
+
+/// Replaces the document's `[uncertainty]` table (or adds one) with `bounds`, each value
+/// under a comment saying where it came from; the table's own comment says how it was made.
+fn write_uncertainty(
+    doc: &mut DocumentMut,
+    bounds: &Bounds,
+    origin: &str,
+) -> Result<(), &'static str> {
+    // An inline table (`uncertainty = { … }`) becomes a table of its own.
+    if doc.get("uncertainty").is_some_and(|item| !item.is_table()) {
+        doc.remove("uncertainty");
+    }
+    if doc.get("uncertainty").is_none() {
+        doc.insert("uncertainty", Item::Table(Table::new()));
+    }
+    let table = doc
+        .get_mut("uncertainty")
+        .and_then(Item::as_table_mut)
+        .ok_or("its [uncertainty] cannot be edited")?;
+    table.decor_mut().set_prefix(format!(
+        "\n# How far the numbers of this file may be off (docs/model.md §5), written by softcbf \
+         identify: {origin}.\n# Stiffness and damping: {K_SIGMA} standard errors (each with its \
+         timing, filter and noise parts, docs/model.md §10); what it did not measure is kept \
+         from the input file, as each line says.\n# The {}.\n",
+        bounds.gains
+    ));
+    let fields = [
+        ("stiffness", &bounds.stiffness),
+        ("damping", &bounds.damping),
+        ("mass", &bounds.mass),
+        ("force", &bounds.force),
+    ];
+    for (key, bound) in fields {
+        set(table, key, Value::from(bound.value), &bound.source);
+    }
+    Ok(())
+}
+
+/// Checks that `parsed` (the rendered file) is `robot` with exactly the numbers of `id` and
+/// its `[uncertainty]` table.
 fn check_rendered(parsed: &Robot, robot: &Robot, id: &Identification) -> Result<(), String> {
+    let uncertainty = identified_bounds(robot, id).uncertainty();
+    if parsed.uncertainty != uncertainty {
+        return Err(format!(
+            "its [uncertainty] reads back as {:?}, not {uncertainty:?}",
+            parsed.uncertainty
+        ));
+    }
     let mut restored = parsed.clone();
+    restored.uncertainty = robot.uncertainty;
     for (i, module) in restored.modules.iter_mut().enumerate() {
         let fields = [
             (Parameter::BendingStiffness, &mut module.bending_stiffness),
@@ -532,6 +587,7 @@ mod tests {
             rest_states: 2,
             rows: [12, 60],
             half_width: 0.08,
+            period: 0.01,
             timing_uncertainty: None,
             holdout: 0.2,
             predictions: Vec::new(),
@@ -580,5 +636,45 @@ mod tests {
         assert_eq!(written.matches("[[module]]").count(), 2, "{written}");
         assert!(!dir.join(".identified.toml.partial").exists());
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A file without `[uncertainty]` gets one, after its last table; a kind with a number
+    /// not identified keeps the input's bound for it (none here) and says so.
+    #[test]
+    fn a_file_without_uncertainty_gets_the_identified_table() {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/hardware-example.toml"
+        ));
+        let text = std::fs::read_to_string(path).unwrap();
+        let start = text.find("# How far these unmeasured").unwrap();
+        let end = text.find("[defaults]").unwrap();
+        let text = format!("{}{}", &text[..start], &text[end..]);
+        let robot = Robot::parse(&text, path).unwrap();
+        assert!(!robot.uncertainty.is_declared());
+        let id = scaled(&robot);
+        let rendered = render(&text, &robot, &id).unwrap();
+        let back = Robot::parse(&rendered, path).unwrap();
+        // 3 standard errors of 1e-5 over the least of the numbers (module 2's κθ, 0.6).
+        let stiffness = 3e-5 / 0.6;
+        assert!(
+            back.uncertainty.stiffness >= (1.0 - 1e-9) * stiffness
+                && back.uncertainty.stiffness < 1.1 * stiffness,
+            "{:?}",
+            back.uncertainty
+        );
+        assert_eq!((back.uncertainty.mass, back.uncertainty.force), (0.0, 0.0));
+        let table = &rendered[rendered.find("[uncertainty]").unwrap()..];
+        assert!(
+            table.contains(
+                "module 2 βθ not identified (the logs do not excite it): the input \
+                 file's 0.00 % kept"
+            ),
+            "{table}"
+        );
+        assert!(
+            table.contains("none declared, as in the input file"),
+            "{table}"
+        );
     }
 }

@@ -18,6 +18,7 @@ use crate::dynamics::{BarrierTerms, DynamicsWorkspace, model_terms};
 use crate::hardware::emulator::SensorNoise;
 use crate::hardware::emulator::servos::standard_normal;
 use crate::hardware::log::extra_columns;
+use crate::hardware::log_description::LogDescription;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::command_wire_time;
 use crate::integrator::Tolerances;
@@ -154,6 +155,10 @@ pub fn write_log(
         return Err(format!("{servos} plant gains needed"));
     }
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    // What a run writes beside its log: the hardware description it was taken with.
+    LogDescription::of(&file.robot, map.hardware())
+        .write(dir)
+        .map_err(|e| e.to_string())?;
     let names = extra_columns(servos, &coordinate_names(nq));
     let columns = Columns::for_model(file, &as_strs(&names)).map_err(|e| e.to_string())?;
     let path = dir.join("trajectory.csv");

@@ -492,7 +492,7 @@ fn summarize(
     for group in &report.groups {
         let lowest = group.lowest_barrier.as_ref().map_or(f64::NAN, |q| q.min);
         console.say(&format!(
-            "{}: {} of {} runs unsafe ({:.2} %; below {:e}, invalid state or stopped; {} \
+            "{}: {} of {} runs unsafe ({:.2} %; below {:e}, invalid state, relaxed or stopped; {} \
              with the set point inside the safe set), lowest {lowest:.3e}, {} with an \
              invalid state, {} relaxed, {} failed QP, {} stopped",
             group.name,

@@ -293,7 +293,7 @@ struct GroupCount {
 
 impl GroupCount {
     /// Legend text: `name: unsafe / runs below −1e-6 m[, k off the axis]` (unsafe: below
-    /// the threshold, an invalid state or stopped early).
+    /// the threshold, an invalid state, relaxed rows or stopped early).
     fn text(&self, threshold: &str) -> String {
         let mut text = format!(
             "{}: {} / {} unsafe (< {threshold})",

@@ -280,16 +280,43 @@ pub const LOAD_FAULTS: [&str; 3] = [
     "torque-off not confirmed",
 ];
 
+/// Whether a run's verdict line is `UNSAFE` for relaxed ticks alone. The example robot's
+/// ±10 % `[uncertainty]` leaves the robust rows with no common point on a few ticks of a
+/// run against the emulator (2 or 3 of the first ticks; 0 without the table), which makes
+/// the run unsafe (a relaxed tick is not filtered); tests of something else (signals, lost
+/// output) accept that verdict until the filter meets those rows (issue 29).
+pub fn unsafe_only_by_relaxed_ticks(output: &str) -> bool {
+    // The verdict line, or (standard output lost) the error line that repeats it.
+    output
+        .lines()
+        .find_map(|line| {
+            line.strip_prefix("verdict: UNSAFE: ")
+                .or_else(|| line.strip_prefix("error: unsafe run: "))
+        })
+        .is_some_and(|why| {
+            why.split("; ")
+                .all(|reason| reason.contains("ticks relaxed barrier rows"))
+        })
+}
+
 /// Whether a run's status `code` is `expected`. A stop on one of the [`LOAD_FAULTS`] (exit
 /// status 4, its words in `output`: the run's standard output and error) is printed as a
 /// loaded machine's and answers `false`: the test then checks only what holds at any load.
-/// Any other status fails the test.
+/// So is a run unsafe by relaxed ticks alone ([`unsafe_only_by_relaxed_ticks`]) where a
+/// test expects another status. Any other status fails the test.
 pub fn status_is(code: i32, expected: i32, output: &str, what: &str) -> bool {
     if code == expected {
         return true;
     }
     if code == 4 && LOAD_FAULTS.iter().any(|words| output.contains(words)) {
         println!("{what}: a loaded machine's fault, the verdict not checked:\n{output}");
+        return false;
+    }
+    if code == 3 && expected != 3 && unsafe_only_by_relaxed_ticks(output) {
+        println!(
+            "{what}: unsafe only by relaxed ticks (the example robot's ±10 % [uncertainty] \
+             against cables that only pull: issue 29), the verdict not checked:\n{output}"
+        );
         return false;
     }
     panic!("{what}: exit {code}, expected {expected}:\n{output}");
