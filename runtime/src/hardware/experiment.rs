@@ -998,9 +998,6 @@ impl Experiment {
     /// kept for the level's measurement. Allocates nothing.
     pub fn observe(&mut self, b: &[f64], ahead: &[f64]) {
         let n = b.len().min(self.window_low.len());
-        if self.t0.is_none() && self.settings.kind == ExperimentKind::Dynamic {
-            self.reference[..n].copy_from_slice(&b[..n]);
-        }
         for (j, &value) in b[..n].iter().enumerate() {
             let heading = ahead.get(j).copied().unwrap_or(value);
             let guarded = value.min(heading);
@@ -1187,7 +1184,7 @@ impl Experiment {
         let s = &self.settings;
         match s.kind {
             ExperimentKind::Dynamic => {
-                let d = self.length.unwrap_or(DEFAULT_DYNAMIC_DURATION);
+                let d = self.length.unwrap_or(DEFAULT_DYNAMIC_DURATION) + self.lead();
                 [d, d]
             }
             ExperimentKind::Static => {
@@ -1216,7 +1213,7 @@ impl Experiment {
             }
         };
         let time = t - t0;
-        if self.length.is_some_and(|d| time >= d) {
+        if self.length.is_some_and(|d| time >= d + self.lead()) {
             self.finished = true;
         }
         match self.settings.kind {
@@ -1409,13 +1406,42 @@ impl Experiment {
         true
     }
 
+    /// Dynamic: the hold at `f_min` before the excitation \[s\] (the settle time), at whose
+    /// end the reference state is read; static: none (the base set is its reference).
+    fn lead(&self) -> f64 {
+        match self.settings.kind {
+            ExperimentKind::Static => 0.0,
+            ExperimentKind::Dynamic => self.settings.settle_time,
+        }
+    }
+
     fn command_dynamic(&mut self, time: f64, tensions: &mut [f64]) -> Mark {
-        if !self.finished && time - self.window_start >= self.settings.check_window {
+        let n = self.n_servos;
+        let lead = self.lead();
+        if time < lead {
+            // The cables at f_min until the robot has settled there: the reference state
+            // the levels' drops are measured from.
+            for (j, tension) in tensions[..n].iter_mut().enumerate() {
+                *tension = self.f_min[j / 3];
+            }
+            return Mark {
+                step: 0,
+                rest: false,
+            };
+        }
+        if self.window_start < lead {
+            self.reference.copy_from_slice(&self.last_barriers);
+            self.window_low.fill(f64::INFINITY);
+            self.window_deviation = 0.0;
+            self.window_start = lead;
+            self.scale_changed = 0.0;
+        }
+        let time = time - lead;
+        if !self.finished && time + lead - self.window_start >= self.settings.check_window {
             self.end_window();
-            self.window_start = time;
+            self.window_start = time + lead;
             self.scale_changed = time;
         }
-        let n = self.n_servos;
         if self.stop.is_some() {
             // Stopped by the guard: the cables back to f_min until the safe stop.
             for (j, tension) in tensions[..n].iter_mut().enumerate() {
@@ -1865,7 +1891,8 @@ mod tests {
             let mark = e.command(t, &[0.0; 6], &mut tensions);
             assert!(!mark.rest);
             if e.finished() {
-                assert!((t - 106.0).abs() < 0.011, "finished at {t}");
+                // Its length after the hold at f_min (the settle time, 1 s).
+                assert!((t - 107.0).abs() < 0.011, "finished at {t}");
                 break;
             }
             steps.push(mark.step);
@@ -1889,10 +1916,11 @@ mod tests {
         let mut largest = [0.0_f64; 6];
         let dt = 1e-3;
         let share = DEFAULT_DYNAMIC_DURATION / 3.0;
-        for k in 0..(DEFAULT_DYNAMIC_DURATION / dt) as usize {
+        let lead = settings.settle_time;
+        for k in 0..((DEFAULT_DYNAMIC_DURATION + lead) / dt) as usize {
             let t = k as f64 * dt;
             let mark = e.command(t, &[0.0; 6], &mut tensions);
-            let into = t - mark.step as f64 * share;
+            let into = t - lead - mark.step as f64 * share;
             for (j, &f) in tensions.iter().enumerate() {
                 let [f_min, f_max] = limits[j / 3];
                 assert!((f_min..=f_max).contains(&f), "servo {j} at {t} s: {f} N");
@@ -1936,7 +1964,8 @@ mod tests {
         assert_eq!(e.scale(), 1.0);
         let mut deviation = vec![[0.0; 6]; samples];
         for (s, d) in deviation.iter_mut().enumerate() {
-            let t = 21.0 + s as f64 * dt;
+            // After the hold at f_min (1 s), 1 s into the second point.
+            let t = 22.0 + s as f64 * dt;
             let mark = e.command(t, &[0.0; 6], &mut tensions);
             assert_eq!(mark.step, 1);
             for j in 0..6 {
