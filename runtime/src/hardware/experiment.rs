@@ -2220,6 +2220,57 @@ mod tests {
         assert!((lowest - 4e-3).abs() < 1e-9, "{lowest}");
     }
 
+    /// A dynamic experiment on a robot whose one barrier sits at 10 mm with the cables
+    /// slack (the first reading), 2 mm lower with them at `f_min`, and falls linearly with
+    /// the largest deviation from `f_min` beyond, by 1 mm (8 mm) at the design's largest:
+    /// the levels are measured from the hold at `f_min`, so they reach the full one when
+    /// the fall leaves room (from the first reading, the 2 mm of `f_min` counted as a drop
+    /// of the first level and held the levels back), and stay where the extrapolation keeps
+    /// 3 mm when it does not.
+    #[test]
+    fn dynamic_levels_are_measured_from_the_hold_at_f_min() {
+        let (_, limits) = example();
+        let settings = ExperimentSettings::new(ExperimentKind::Dynamic);
+        // The design's largest deviation: the top operating point (a above the lowest,
+        // itself a above f_min) plus a.
+        let a = experiment(&settings)
+            .amplitude()
+            .iter()
+            .copied()
+            .fold(0.0, f64::max);
+        for (drop, full) in [(1e-3, true), (8e-3, false)] {
+            let sigma = drop / (3.0 * a);
+            let mut e = experiment(&settings);
+            e.watch(1);
+            let mut tensions = [0.0; 6];
+            let mut lowest = f64::INFINITY;
+            let mut k = 0;
+            while !e.finished() {
+                let h = if k == 0 {
+                    10e-3
+                } else {
+                    let deviation = (0..6)
+                        .map(|j| tensions[j] - limits[j / 3][0])
+                        .fold(0.0, f64::max);
+                    8e-3 - sigma * deviation
+                };
+                lowest = lowest.min(h);
+                e.observe(&[h], &[h]);
+                e.command(k as f64 / RATE, &[0.0; 6], &mut tensions);
+                k += 1;
+            }
+            let report = e.report();
+            assert!(report.complete, "{report:?}");
+            let top = report.levels.iter().map(|l| l.scale).fold(0.0, f64::max);
+            if full {
+                assert_eq!(top, 1.0, "{:?}", report.levels);
+            } else {
+                assert!(top < 1.0, "{:?}", report.levels);
+                assert!(lowest >= 3e-3 - 1e-9, "{lowest}");
+            }
+        }
+    }
+
     #[test]
     fn the_guard_stops_below_the_stop_distance_and_lowers_the_tensions_to_f_min() {
         let (_, limits) = example();
