@@ -343,6 +343,7 @@ fn on_a_robot_past_its_barriers_the_guard_stops_the_experiment_at_once() {
         "{stdout}"
     );
     assert!(stdout.contains("module 1 elongation min at"), "{stdout}");
+    assert!(!stdout.contains("next: "), "{stdout}");
     let s = summary(&out);
     assert_torque_off(&s);
     assert_eq!(s["experiment"]["stopped_by_guard"], true);

@@ -148,8 +148,9 @@ pub struct RunArgs {
     /// a set that does not is counted and left.
     #[arg(long, allow_negative_numbers = true)]
     pub step_time: Option<f64>,
-    /// Static experiment: the band (max − min over 0.5 s) within which every coordinate
-    /// counts as at rest (m) (default 3e-4).
+    /// Static experiment: the band within which every coordinate counts as at rest (m)
+    /// (default 3e-4): over 0.5 s, its standard deviation at most this over 2√2 (a
+    /// sinusoid spanning it) and its mean drifting by at most half of it.
     #[arg(long, allow_negative_numbers = true)]
     pub rest_threshold: Option<f64>,
     /// Experiment: how far the robot may be from its file, a fraction of its stiffness,
@@ -759,8 +760,11 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     let progress_error = log.console_error().map(str::to_string);
     let log = log.into_inner();
     report(&summary, &limits, console);
+    // After a guard's stop the robot file (or the experiment's levels) needs looking at
+    // first: `stopped:` said why.
     if let Some(experiment) = &summary.experiment
         && !summary.stop.is_fault()
+        && experiment.stopped.is_none()
     {
         console.say(&super::next_step::after_experiment(
             experiment.settings.kind,
@@ -853,7 +857,7 @@ fn experiment_line(experiment: &Experiment) -> String {
         ExperimentKind::Static => format!(
             "experiment: static, {} tension sets (base b + amplitude a on single tendons, \
              pairs, all three), b = [{}] N, a = [{}] N per module; each held until at rest \
-             (within {} m for {} s, at most {} s), then {} s of rest rows; {least:.0} to \
+             (spread and drift within {} m over {} s, at most {} s), then {} s of rest rows; {least:.0} to \
              {most:.0} s; levels from {:.0} % of a, growing ×{} while the barriers keep {} m \
              (robot within ±{:.0} % of its file), stop below {} m",
             report.steps,
