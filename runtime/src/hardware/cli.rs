@@ -675,7 +675,6 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     let stop = signal::stop_flag();
     let (robot, mut hardware) = load(&args.robot)?;
     let (settings, limits) = run_settings(&args, &robot, &mut hardware)?;
-    let robot = experiment_robot(robot, settings.experiment.is_some(), console);
     let planned = match &settings.experiment {
         Some(design) => Some(Experiment::new(
             design,
@@ -819,27 +818,6 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         code = exit::worst(code, exit::ERROR);
     }
     Ok(code)
-}
-
-/// The robot an experiment's filter works with: the file's numbers without its declared
-/// `[uncertainty]`. An experiment is run on a robot that may be far outside that box (it is
-/// what identification is for); there the robust rows cannot all be met, and the relaxed
-/// solution pulled a robot with 50 % stronger actuators 31 mm down within 0.15 s while
-/// the experiment asked for `f_min` (docs/hardware.md). The experiment's levels and guard
-/// keep the barriers instead. Said on the console when something is dropped.
-fn experiment_robot(robot: Robot, experiment: bool, console: &mut Console) -> Robot {
-    if !experiment || !robot.uncertainty.is_declared() {
-        return robot;
-    }
-    console.say(
-        "experiment: the filter works with the file's numbers without its [uncertainty] \
-         (a robot being identified may be far outside it); the experiment's levels and guard \
-         keep the barriers",
-    );
-    Robot {
-        uncertainty: Default::default(),
-        ..robot
-    }
 }
 
 /// What the experiment will do, in one line: its steps, tensions per module and length.
