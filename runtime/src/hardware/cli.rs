@@ -148,10 +148,24 @@ pub struct RunArgs {
     /// a set that does not is counted and left.
     #[arg(long, allow_negative_numbers = true)]
     pub step_time: Option<f64>,
-    /// Static experiment: the band (max − min over 0.5 s) within which every coordinate
-    /// counts as at rest (m) (default 3e-4).
+    /// Static experiment: the band within which every coordinate counts as at rest (m)
+    /// (default 3e-4): over 0.5 s, its standard deviation at most this over 2√2 (a
+    /// sinusoid spanning it) and its mean drifting by at most half of it.
     #[arg(long, allow_negative_numbers = true)]
     pub rest_threshold: Option<f64>,
+    /// Experiment: how far the robot may be from its file, a fraction of its stiffness,
+    /// damping and actuator gains (default 0.5): the first level of the amplitudes is safe
+    /// for any robot within it, the next ones grow from what the barriers did.
+    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true)]
+    pub experiment_uncertainty: Option<f64>,
+    /// Experiment: stop (cables to f_min, then torque off) when a barrier at the state read
+    /// falls below this (m, or rad for a bend limit) (default 1e-3).
+    #[arg(long, allow_negative_numbers = true)]
+    pub stop_distance: Option<f64>,
+    /// Experiment: grow the amplitudes only while every barrier, extrapolated from what it
+    /// did at the levels run, stays above this (m, or rad) (default 3e-3).
+    #[arg(long, allow_negative_numbers = true)]
+    pub growth_distance: Option<f64>,
     /// Proportional gain K_P = kp·I (N/m) (default: the robot file's `[gains] kp`, else 5).
     #[arg(long, allow_negative_numbers = true)]
     pub kp: Option<f64>,
@@ -488,6 +502,12 @@ fn experiment_settings(args: &RunArgs) -> Result<Option<ExperimentSettings>, Str
             (args.base_tension.is_some(), "--base-tension"),
             (args.step_time.is_some(), "--step-time"),
             (args.rest_threshold.is_some(), "--rest-threshold"),
+            (
+                args.experiment_uncertainty.is_some(),
+                "--experiment-uncertainty",
+            ),
+            (args.stop_distance.is_some(), "--stop-distance"),
+            (args.growth_distance.is_some(), "--growth-distance"),
         ] {
             if given {
                 return Err(format!(
@@ -546,6 +566,21 @@ fn experiment_settings(args: &RunArgs) -> Result<Option<ExperimentSettings>, Str
     if let Some(metres) = args.rest_threshold {
         settings.rest_threshold =
             check_number("--rest-threshold", metres, &experiment::REST_THRESHOLD_M)?;
+    }
+    if let Some(fraction) = args.experiment_uncertainty {
+        settings.uncertainty = check_number(
+            "--experiment-uncertainty",
+            fraction,
+            &experiment::EXPERIMENT_UNCERTAINTY,
+        )?;
+    }
+    if let Some(metres) = args.stop_distance {
+        settings.stop_distance =
+            check_number("--stop-distance", metres, &experiment::GUARD_DISTANCE)?;
+    }
+    if let Some(metres) = args.growth_distance {
+        settings.growth_distance =
+            check_number("--growth-distance", metres, &experiment::GUARD_DISTANCE)?;
     }
     Ok(Some(settings))
 }
@@ -724,8 +759,11 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
     let progress_error = log.console_error().map(str::to_string);
     let log = log.into_inner();
     report(&summary, &limits, console);
+    // After a guard's stop the robot file (or the experiment's levels) needs looking at
+    // first: `stopped:` said why.
     if let Some(experiment) = &summary.experiment
         && !summary.stop.is_fault()
+        && experiment.stopped.is_none()
     {
         console.say(&super::next_step::after_experiment(
             experiment.settings.kind,
@@ -742,6 +780,10 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         Verdict::NotRun(why) | Verdict::Fault(why) => eprintln!("error: {why}"),
     }
     let mut code = verdict.status();
+    // An experiment its guard stopped did not do all it was asked (the robot is safe).
+    if matches!(summary.stop, StopReason::ExperimentStopped { .. }) {
+        code = exit::worst(code, exit::ERROR);
+    }
     // The log is closed and drawn whatever becomes of the summary, and the other way round.
     // An experiment has no set point to draw or record.
     let set_point: &[f64] = match settings.experiment {
@@ -793,8 +835,9 @@ fn experiment_line(experiment: &Experiment) -> String {
         ExperimentKind::Static => format!(
             "experiment: static, {} tension sets (base b + amplitude a on single tendons, \
              pairs, all three), b = [{}] N, a = [{}] N per module; each held until at rest \
-             (within {} m for {} s, at most {} s), then {} s of rest rows; {least:.0} to \
-             {most:.0} s",
+             (spread and drift within {} m over {} s, at most {} s), then {} s of rest rows; {least:.0} to \
+             {most:.0} s; levels from {:.0} % of a, growing ×{} while the barriers keep {} m \
+             (robot within ±{:.0} % of its file), stop below {} m",
             report.steps,
             list(&report.base_tension),
             list(&report.amplitude),
@@ -802,10 +845,17 @@ fn experiment_line(experiment: &Experiment) -> String {
             report.settings.quiet_window,
             report.settings.step_time,
             report.settings.rest_window,
+            100.0 * report.start_scale,
+            report.settings.growth,
+            report.settings.growth_distance,
+            100.0 * report.settings.uncertainty,
+            report.settings.stop_distance,
         ),
         ExperimentKind::Dynamic => format!(
             "experiment: dynamic, {least:.0} s: multisines of amplitude [{}] N per module, \
-             {} lines each from {:.2} to {:.2} Hz, around {} operating points from [{}] N",
+             {} lines each from {:.2} to {:.2} Hz, around {} operating points from [{}] N; \
+             levels from {:.0} %, reconsidered every {} s, growing ×{} while the barriers \
+             keep {} m (robot within ±{:.0} % of its file), stop below {} m",
             list(&report.amplitude),
             report
                 .lines_per_servo
@@ -817,6 +867,12 @@ fn experiment_line(experiment: &Experiment) -> String {
             report.band[1],
             report.steps,
             list(&report.base_tension),
+            100.0 * report.start_scale,
+            report.settings.check_window,
+            report.settings.growth,
+            report.settings.growth_distance,
+            100.0 * report.settings.uncertainty,
+            report.settings.stop_distance,
         ),
     }
 }
@@ -1002,6 +1058,7 @@ fn write_summary(
 /// `steps_run`, `steps_at_rest`, `steps_without_rest`, `rest_rows`, `complete`.
 fn experiment_json(e: &ExperimentReport) -> serde_json::Value {
     let s = &e.settings;
+    let finite = |v: f64| v.is_finite().then_some(v);
     let mut json = serde_json::json!({
         "kind": s.kind.name(),
         "duration": s.duration,
@@ -1013,6 +1070,18 @@ fn experiment_json(e: &ExperimentReport) -> serde_json::Value {
         "steps_without_rest": e.steps_without_rest,
         "rest_rows": e.rest_rows,
         "complete": e.complete,
+        "uncertainty": s.uncertainty,
+        "stop_distance": s.stop_distance,
+        "growth_distance": s.growth_distance,
+        "growth": s.growth,
+        "start_scale": e.start_scale,
+        "levels": e.levels.iter().map(|l| serde_json::json!({
+            "scale": l.scale,
+            "lowest": finite(l.lowest),
+            "next": l.next,
+            "predicted": finite(l.predicted),
+        })).collect::<Vec<_>>(),
+        "stopped_by_guard": e.stopped.is_some(),
     });
     let more = match s.kind {
         ExperimentKind::Static => serde_json::json!({

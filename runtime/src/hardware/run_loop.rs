@@ -153,6 +153,10 @@ struct Workspace<'m> {
     q_prev: Vec<f64>,
     /// Barriers at the state read.
     barriers: Vec<f64>,
+    /// An experiment's guard: the state read carried ahead at its velocity to when the
+    /// next command lands, and the barriers there.
+    q_ahead: Vec<f64>,
+    barriers_ahead: Vec<f64>,
     tensions: Vec<f64>,
     /// The generalized force of the tensions last sent (in force until the next command).
     tau_applied: Vec<f64>,
@@ -249,6 +253,8 @@ pub fn run_reporting<P: ServoPort>(
         qd_used: vec![0.0; nq],
         q_prev: vec![0.0; nq],
         barriers: vec![0.0; model.nb()],
+        q_ahead: vec![0.0; nq],
+        barriers_ahead: vec![0.0; model.nb()],
         tensions: vec![0.0; n],
         tau_applied: vec![0.0; nq],
         experiment_tensions: vec![0.0; n],
@@ -331,10 +337,10 @@ pub fn run_reporting<P: ServoPort>(
         controller.set_hold(1.0 / settings.rate);
         // The experiment at the rate decided (its band depends on it), before torque on.
         if let Some(design) = &settings.experiment {
-            experiment = Some(
-                Experiment::new(design, &model.robot, &tension_limits, settings.rate)
-                    .map_err(RunError::Setting)?,
-            );
+            let mut built = Experiment::new(design, &model.robot, &tension_limits, settings.rate)
+                .map_err(RunError::Setting)?;
+            built.watch(model.nb());
+            experiment = Some(built);
         }
         // A signal during the bus check: torque stays off.
         if stop.load(Ordering::Relaxed) {
@@ -538,6 +544,16 @@ fn control_loop<P: ServoPort>(
         if let Some(experiment) = experiment.as_deref()
             && experiment.finished()
         {
+            if let Some(stop) = experiment.stopped() {
+                let j = stop.barrier();
+                let (label, unit) = barrier_table
+                    .get(j)
+                    .map_or(("a barrier", ""), |b| (b.label, b.kind.unit()));
+                return StopReason::ExperimentStopped {
+                    why: stop.describe(label, unit),
+                    left: experiment.steps_left(),
+                };
+            }
             return StopReason::ExperimentOver {
                 left: experiment.steps_left(),
             };
@@ -617,10 +633,27 @@ fn control_loop<P: ServoPort>(
                 if settings.predict && !predict(model, ws, age) {
                     summary.prediction_failures += 1;
                 }
+                // The barriers at the state read: what the robot really did (and what
+                // an experiment's guard and levels watch).
+                model
+                    .generated
+                    .barriers(&model.params, &ws.q, &mut ws.barriers);
                 let tick_status = match experiment.as_deref_mut() {
                     // The experiment judges rest on the state read, and its tensions are
                     // the nominal command.
                     Some(experiment) => {
+                        // Where the robot will be when the command after this one lands,
+                        // at its present velocity: the guard stops before that, not after.
+                        let ahead = age + hold;
+                        for (k, q) in ws.q_ahead.iter_mut().enumerate() {
+                            *q = ws.q[k] + ws.qd[k] * ahead;
+                        }
+                        model.generated.barriers(
+                            &model.params,
+                            &ws.q_ahead,
+                            &mut ws.barriers_ahead,
+                        );
+                        experiment.observe(&ws.barriers, &ws.barriers_ahead);
                         ws.mark = Some(experiment.command(t, &ws.q, &mut ws.experiment_tensions));
                         map.tau_from_tensions(&ws.experiment_tensions, &mut ws.tau_experiment);
                         control::tick_feedforward(
@@ -691,10 +724,6 @@ fn control_loop<P: ServoPort>(
                     TickStatus::Filtered => {}
                 }
                 summary.clamps.add(clamps);
-                // The barriers at the state read: what the robot really did.
-                model
-                    .generated
-                    .barriers(&model.params, &ws.q, &mut ws.barriers);
                 for (j, &b) in ws.barriers.iter().enumerate() {
                     // A NaN barrier (a state outside the model) counts as the lowest.
                     let value = if b.is_nan() { f64::NEG_INFINITY } else { b };

@@ -23,6 +23,16 @@ pub enum StopReason {
         /// Steps not run.
         left: usize,
     },
+    /// The identification experiment's guard stopped it before its end, the robot safe: a
+    /// barrier at the state read below the stop distance, or no level left that keeps the
+    /// barriers their distance ([`crate::hardware::experiment::ExperimentStop`]). Not a
+    /// fault; the command line exits with [`crate::exit::ERROR`] at least (not all done).
+    ExperimentStopped {
+        /// What happened, naming the barrier.
+        why: String,
+        /// Steps not run.
+        left: usize,
+    },
     /// A terminating signal (Ctrl-C, a closed terminal, `kill`) through the stop flag.
     Interrupted,
     /// `max_consecutive_errors` ticks in a row without a good reading.
@@ -57,7 +67,10 @@ impl StopReason {
     pub fn is_fault(&self) -> bool {
         !matches!(
             self,
-            StopReason::Duration | StopReason::Interrupted | StopReason::ExperimentOver { .. }
+            StopReason::Duration
+                | StopReason::Interrupted
+                | StopReason::ExperimentOver { .. }
+                | StopReason::ExperimentStopped { .. }
         )
     }
 }
@@ -70,6 +83,10 @@ impl std::fmt::Display for StopReason {
             StopReason::ExperimentOver { left } => write!(
                 f,
                 "experiment ended by --duration with {left} of its steps not run"
+            ),
+            StopReason::ExperimentStopped { why, left } => write!(
+                f,
+                "experiment stopped by its guard with {left} of its steps not run: {why}"
             ),
             StopReason::Interrupted => write!(f, "interrupted"),
             StopReason::CommunicationLost { ticks, last_error } => {
