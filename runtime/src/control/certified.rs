@@ -1142,6 +1142,164 @@ fn perron_bound(p: &[f64], nq: usize, work: &mut [f64]) -> f64 {
     (0..nq).map(|r| y[r] / x[r]).fold(0.0, f64::max) * (1.0 + 1e-10)
 }
 
+/// The forcing bound `F̄` of every cell (`ws.force`) for the tube the workspace assumes
+/// (`ws.xi` around the corrected prediction), group by group of cells: the fit's residual
+/// `g − φ` on the uncorrected prediction (its values at the samples plus half a cell of its
+/// rate from a jet along that prediction, and the jerk term's integral), the change of `g`
+/// across the spread of the commands, of the correction and of `ξ` (a jet across it), and
+/// the declared box; and per cell a floor of the plant's smallest scaled mass eigenvalue
+/// over the group's box (`ws.mass_floor`). `mass`, `nonlinear`: `M₀` (row-major `nq × nq`)
+/// and `f₀` at the tick; `q0` \[m\].
+fn group_forcing(
+    model: &Model,
+    ws: &mut CertifiedWorkspace,
+    mass: &[f64],
+    nonlinear: &[f64],
+    q0: &[f64],
+) -> Result<(), Uncertified> {
+    let nq = ws.nq;
+    let nn = nq * nq;
+    let u = model.robot.uncertainty;
+    let join = |acc: &mut Interval, x: Interval| {
+        *acc = if acc.is_valid() { acc.hull(x) } else { x };
+    };
+    let count = if ws.coarse {
+        ws.coarse_groups.len()
+    } else {
+        ws.groups.len()
+    };
+    for g in 0..count {
+        let group = if ws.coarse {
+            ws.coarse_groups[g].clone()
+        } else {
+            ws.groups[g].clone()
+        };
+        let mut plain = [[Interval::NAN; 4]; 64];
+        let mut base = [[Interval::NAN; 3]; 64];
+        let mut spread = [[0.0f64; 3]; 64];
+        for c in group.clone() {
+            for i in 0..nq {
+                let at = c * nq + i;
+                let (p, f) = (&ws.plain_cells, &ws.center_cells);
+                for (k, x) in [p.e[at] + q0[i], p.v[at], p.a[at], p.jerk[at]]
+                    .into_iter()
+                    .enumerate()
+                {
+                    join(&mut plain[i][k], x);
+                }
+                let full = [f.e[at].widened(ws.xi[at]) + q0[i], f.v[at], f.a[at]];
+                for k in 0..3 {
+                    join(&mut base[i][k], full[k]);
+                    join(&mut base[i][k], plain[i][k]);
+                }
+                let d = &ws.delta_cells;
+                let now = [d.e[at].mag() + ws.xi[at], d.v[at].mag(), d.a[at].mag()];
+                for k in 0..3 {
+                    spread[i][k] = spread[i][k].max(now[k]);
+                }
+            }
+        }
+        let (mut positions, mut velocities) = ([Interval::ZERO; 64], [Interval::ZERO; 64]);
+        for i in 0..nq {
+            (positions[i], velocities[i]) = (base[i][0], base[i][1]);
+        }
+        if !box_in_domain(model, &positions[..nq], &velocities[..nq]) {
+            return Err(failed(Uncertified::Domain, "group outside the domain"));
+        }
+        // The rate of g along the uncorrected prediction but for its jerk term (q̇ = ė,
+        // q̈ = ë there); the jerk's share, (M₀ − M) e⃛, is taken by its integral below.
+        for i in 0..nq {
+            ws.q_jet[i] = Dual::new(plain[i][0], plain[i][1]);
+            ws.v_jet[i] = Dual::new(plain[i][1], plain[i][2]);
+            ws.a_jet[i] = Dual::constant(plain[i][2]);
+        }
+        if !enclose_mismatch(
+            model,
+            &mut ws.enclosure,
+            &ws.q_jet,
+            &ws.v_jet,
+            &ws.a_jet,
+            mass,
+            nonlinear,
+            &mut ws.g_jet,
+        ) {
+            return Err(failed(Uncertified::Domain, "rate jet"));
+        }
+        let mut rate = [0.0f64; 64];
+        for i in 0..nq {
+            rate[i] = (ws.g_jet[i].slope - ws.phi1[i]).mag();
+        }
+        // |M₀ − M_p| over the uncorrected prediction's box, for the jerk's share.
+        let mut inertial = [0.0f64; 64 * 64];
+        for r in 0..nq {
+            for c in 0..nq {
+                let e = r * nq + c;
+                let mut total = Interval::ZERO;
+                let mut magnitude = 0.0;
+                for b in 0..ws.enclosure.modules() {
+                    total += ws.enclosure.mass_shares[b * nn + e];
+                    magnitude += ws.enclosure.mass_shares[b * nn + e].mag();
+                }
+                inertial[e] = (total - mass[e]).mag() + u.mass * magnitude;
+            }
+        }
+        // The change of g across the spread.
+        for i in 0..nq {
+            ws.q_jet[i] = Dual::new(base[i][0], Interval::around(0.0, spread[i][0]));
+            ws.v_jet[i] = Dual::new(base[i][1], Interval::around(0.0, spread[i][1]));
+            ws.a_jet[i] = Dual::new(base[i][2], Interval::around(0.0, spread[i][2]));
+        }
+        if !enclose_mismatch(
+            model,
+            &mut ws.enclosure,
+            &ws.q_jet,
+            &ws.v_jet,
+            &ws.a_jet,
+            mass,
+            nonlinear,
+            &mut ws.g_jet,
+        ) {
+            return Err(failed(Uncertified::Domain, "spread jet"));
+        }
+        // λ_min(S⁻¹M_pS⁻¹) ≥ (1 − σ_m) (λ_min(S⁻¹M₀S⁻¹) − ‖S⁻¹(M(Q) − M₀)S⁻¹‖_F) over
+        // the group's box.
+        for e in 0..nn {
+            let mut total = Interval::ZERO;
+            for b in 0..ws.enclosure.modules() {
+                total += ws.enclosure.mass_shares[b * nn + e];
+            }
+            ws.scratch[e] = (total - mass[e]).mag() / (ws.scale[e / nq] * ws.scale[e % nq]);
+        }
+        // ‖S⁻¹(M(Q) − M₀)S⁻¹‖₂ ≤ ρ(|S⁻¹(M(Q) − M₀)S⁻¹|).
+        let deviation = perron_bound(&ws.scratch, nq, &mut ws.iterate);
+        let floor = (1.0 - u.mass) * (ws.mass_floor0 - deviation * ROUNDING);
+        for c in group.clone() {
+            ws.mass_floor[c] = floor.max(0.0);
+        }
+        for c in group.clone() {
+            let h = ws.cell(c);
+            for i in 0..nq {
+                let residual = ws.residual[c * nq + i]
+                    .abs()
+                    .max(ws.residual[(c + 1) * nq + i].abs());
+                let jerk_share: f64 = (0..nq)
+                    .map(|k| inertial[i * nq + k] * ws.plain_cells.jerk_variation[c * nq + k])
+                    .sum();
+                let value = residual
+                    + 0.5 * rate[i] * h
+                    + jerk_share
+                    + ws.g_jet[i].slope.mag()
+                    + u.mass * ws.enclosure.per_body[i]
+                    + u.stiffness * model.stiffness[i] * base[i][0].mag()
+                    + u.damping * model.damping[i] * base[i][1].mag()
+                    + u.force;
+                ws.force[c * nq + i] = value * ROUNDING;
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The tube and the error bound. For the assumed `|ξ|` (`ws.xi`), bound the forcing `F̄`
 /// of every cell — the fit's residual `g − φ` on the uncorrected prediction (its values at the
 /// samples, plus half a cell of its rate from a jet along that prediction), the change of
@@ -1245,140 +1403,7 @@ fn error_bounds(
             return Err(failed(Uncertified::Tube, "kappa"));
         }
         ws.damping_share = 1.0 - kappa;
-        let count = if ws.coarse {
-            ws.coarse_groups.len()
-        } else {
-            ws.groups.len()
-        };
-        for g in 0..count {
-            let group = if ws.coarse {
-                ws.coarse_groups[g].clone()
-            } else {
-                ws.groups[g].clone()
-            };
-            let mut plain = [[Interval::NAN; 4]; 64];
-            let mut base = [[Interval::NAN; 3]; 64];
-            let mut spread = [[0.0f64; 3]; 64];
-            for c in group.clone() {
-                for i in 0..nq {
-                    let at = c * nq + i;
-                    let (p, f) = (&ws.plain_cells, &ws.center_cells);
-                    for (k, x) in [p.e[at] + q0[i], p.v[at], p.a[at], p.jerk[at]]
-                        .into_iter()
-                        .enumerate()
-                    {
-                        join(&mut plain[i][k], x);
-                    }
-                    let full = [f.e[at].widened(ws.xi[at]) + q0[i], f.v[at], f.a[at]];
-                    for k in 0..3 {
-                        join(&mut base[i][k], full[k]);
-                        join(&mut base[i][k], plain[i][k]);
-                    }
-                    let d = &ws.delta_cells;
-                    let now = [d.e[at].mag() + ws.xi[at], d.v[at].mag(), d.a[at].mag()];
-                    for k in 0..3 {
-                        spread[i][k] = spread[i][k].max(now[k]);
-                    }
-                }
-            }
-            let (mut positions, mut velocities) = ([Interval::ZERO; 64], [Interval::ZERO; 64]);
-            for i in 0..nq {
-                (positions[i], velocities[i]) = (base[i][0], base[i][1]);
-            }
-            if !box_in_domain(model, &positions[..nq], &velocities[..nq]) {
-                return Err(failed(Uncertified::Domain, "group outside the domain"));
-            }
-            // The rate of g along the uncorrected prediction but for its jerk term (q̇ = ė,
-            // q̈ = ë there); the jerk's share, (M₀ − M) e⃛, is taken by its integral below.
-            for i in 0..nq {
-                ws.q_jet[i] = Dual::new(plain[i][0], plain[i][1]);
-                ws.v_jet[i] = Dual::new(plain[i][1], plain[i][2]);
-                ws.a_jet[i] = Dual::constant(plain[i][2]);
-            }
-            if !enclose_mismatch(
-                model,
-                &mut ws.enclosure,
-                &ws.q_jet,
-                &ws.v_jet,
-                &ws.a_jet,
-                mass,
-                nonlinear,
-                &mut ws.g_jet,
-            ) {
-                return Err(failed(Uncertified::Domain, "rate jet"));
-            }
-            let mut rate = [0.0f64; 64];
-            for i in 0..nq {
-                rate[i] = (ws.g_jet[i].slope - ws.phi1[i]).mag();
-            }
-            // |M₀ − M_p| over the uncorrected prediction's box, for the jerk's share.
-            let mut inertial = [0.0f64; 64 * 64];
-            for r in 0..nq {
-                for c in 0..nq {
-                    let e = r * nq + c;
-                    let mut total = Interval::ZERO;
-                    let mut magnitude = 0.0;
-                    for b in 0..ws.enclosure.modules() {
-                        total += ws.enclosure.mass_shares[b * nn + e];
-                        magnitude += ws.enclosure.mass_shares[b * nn + e].mag();
-                    }
-                    inertial[e] = (total - mass[e]).mag() + u.mass * magnitude;
-                }
-            }
-            // The change of g across the spread.
-            for i in 0..nq {
-                ws.q_jet[i] = Dual::new(base[i][0], Interval::around(0.0, spread[i][0]));
-                ws.v_jet[i] = Dual::new(base[i][1], Interval::around(0.0, spread[i][1]));
-                ws.a_jet[i] = Dual::new(base[i][2], Interval::around(0.0, spread[i][2]));
-            }
-            if !enclose_mismatch(
-                model,
-                &mut ws.enclosure,
-                &ws.q_jet,
-                &ws.v_jet,
-                &ws.a_jet,
-                mass,
-                nonlinear,
-                &mut ws.g_jet,
-            ) {
-                return Err(failed(Uncertified::Domain, "spread jet"));
-            }
-            // λ_min(S⁻¹M_pS⁻¹) ≥ (1 − σ_m) (λ_min(S⁻¹M₀S⁻¹) − ‖S⁻¹(M(Q) − M₀)S⁻¹‖_F) over
-            // the group's box.
-            for e in 0..nn {
-                let mut total = Interval::ZERO;
-                for b in 0..ws.enclosure.modules() {
-                    total += ws.enclosure.mass_shares[b * nn + e];
-                }
-                ws.scratch[e] = (total - mass[e]).mag() / (ws.scale[e / nq] * ws.scale[e % nq]);
-            }
-            // ‖S⁻¹(M(Q) − M₀)S⁻¹‖₂ ≤ ρ(|S⁻¹(M(Q) − M₀)S⁻¹|).
-            let deviation = perron_bound(&ws.scratch, nq, &mut ws.iterate);
-            let floor = (1.0 - u.mass) * (ws.mass_floor0 - deviation * ROUNDING);
-            for c in group.clone() {
-                ws.mass_floor[c] = floor.max(0.0);
-            }
-            for c in group.clone() {
-                let h = ws.cell(c);
-                for i in 0..nq {
-                    let residual = ws.residual[c * nq + i]
-                        .abs()
-                        .max(ws.residual[(c + 1) * nq + i].abs());
-                    let jerk_share: f64 = (0..nq)
-                        .map(|k| inertial[i * nq + k] * ws.plain_cells.jerk_variation[c * nq + k])
-                        .sum();
-                    let value = residual
-                        + 0.5 * rate[i] * h
-                        + jerk_share
-                        + ws.g_jet[i].slope.mag()
-                        + u.mass * ws.enclosure.per_body[i]
-                        + u.stiffness * model.stiffness[i] * base[i][0].mag()
-                        + u.damping * model.damping[i] * base[i][1].mag()
-                        + u.force;
-                    ws.force[c * nq + i] = value * ROUNDING;
-                }
-            }
-        }
+        group_forcing(model, ws, mass, nonlinear, q0)?;
         // Φ and the computed |ξ| at the end of each cell: the smallest of the dissipative
         // bound √(t Φ/D′_i), the elastic bound √(2Φ/K_i) and the inertial bound
         // 1/(Sᵢ λ_low) ∫₀ᵗ (t − s) ‖S⁻¹F̄(s)‖ ds, λ_low a floor of λ_min(S⁻¹M_pS⁻¹) (from
@@ -1426,31 +1451,37 @@ fn error_bounds(
             // enclosures were taken over, and ξ starts at zero): it is the one the margins use,
             // and the next tick's start.
             ws.xi.copy_from_slice(&ws.xi_computed);
-            model.generated.barrier_terms_interval(
-                &model.params,
-                &ws.hull_q,
-                &ws.hull_v,
-                &mut ws.barrier_box,
-                &mut ws.jacobian_box,
-                &mut ws.jdot_box,
-            );
-            let finite = ws
-                .barrier_box
-                .iter()
-                .chain(&ws.jacobian_box)
-                .chain(&ws.jdot_box)
-                .all(|x| x.is_finite());
-            return if finite {
-                Ok(())
-            } else {
-                Err(failed(Uncertified::Domain, "barrier enclosure"))
-            };
+            return barrier_enclosures(model, ws);
         }
         for (assumed, computed) in ws.xi.iter_mut().zip(&ws.xi_computed) {
             *assumed = assumed.max(computed * XI_INFLATION + XI_FLOOR);
         }
     }
     Err(failed(Uncertified::Tube, "rounds"))
+}
+
+/// The barriers' enclosures over the tube's hull (`ws.hull_q`, `ws.hull_v`): values,
+/// Jacobian rows and `J̇q̇`.
+fn barrier_enclosures(model: &Model, ws: &mut CertifiedWorkspace) -> Result<(), Uncertified> {
+    model.generated.barrier_terms_interval(
+        &model.params,
+        &ws.hull_q,
+        &ws.hull_v,
+        &mut ws.barrier_box,
+        &mut ws.jacobian_box,
+        &mut ws.jdot_box,
+    );
+    let finite = ws
+        .barrier_box
+        .iter()
+        .chain(&ws.jacobian_box)
+        .chain(&ws.jdot_box)
+        .all(|x| x.is_finite());
+    if finite {
+        Ok(())
+    } else {
+        Err(failed(Uncertified::Domain, "barrier enclosure"))
+    }
 }
 
 /// Bounds every barrier over the hold for the first pass's command (`ws.center`), and sets
