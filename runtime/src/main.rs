@@ -79,8 +79,9 @@ struct SimulateArgs {
     /// Derivative gain K_D = kd·I (N·s/m).
     #[arg(long, allow_negative_numbers = true)]
     kd: Option<f64>,
-    /// How the filter keeps the barriers between samples: `sampled` (the guarantee over the
-    /// whole hold), `paper` (the paper's rows) or `hold-correction` (docs/model.md §5).
+    /// How the filter keeps the barriers between samples: `certified` (every barrier proven
+    /// over the whole hold), `predicted` (kept at samples of the hold), `paper` (the paper's
+    /// rows) or `hold-correction` (docs/model.md §5).
     #[arg(long, value_name = "MODE", value_parser = SafetyMode::parse)]
     safety: Option<SafetyMode>,
     /// Run plain PD+ without the safety filter.

@@ -230,3 +230,49 @@ fn a_backbone_of_no_length_is_an_invalid_state() {
         assert!(controller.tau().iter().all(|&t| t == 0.0));
     }
 }
+
+/// The predicted rows give way in the order of what each is for: on the example robot
+/// (±10 % declared, cables that only pull), module 1 compressing toward its lower limit at
+/// 58 mm/s (the second tick of the hardware walk-through against the emulator), the robust
+/// margin of the end-of-hold rows asks for more than the cables can give; without it every
+/// row is met, the samples' rows with their margins included. Before the rows gave way in
+/// order this tick was relaxed.
+#[test]
+fn end_of_hold_margins_give_way_before_any_row_is_relaxed() {
+    use softcbf::control::{GaveWay, SafetyMode};
+    let robot = Robot::load(&repo("robots/hardware-example.toml")).expect("example robot");
+    assert!(robot.uncertainty.stiffness > 0.0, "the file declares a box");
+    let map = TendonMap::new(&robot).expect("its [hardware] table");
+    let model = Model::new(robot).expect("its model");
+    let mut settings = ControllerSettings::paper(&model);
+    settings.input_limits = map.tension_limit_rows();
+    settings.safety = SafetyMode::Predicted;
+    settings.hold = 1.0 / 33.0;
+    settings.barrier_gains = [20.0, 20.0];
+    let mut controller = Controller::new(&model, settings).expect("controller");
+    let q = [0.0, 3.22e-4, -0.015347, 0.0, -1.4726e-3, -7.064e-3];
+    let qd = [-6.23e-4, 3.957e-3, -0.057554, 0.0, -0.036691, -0.16295];
+    // The walk-through's set point (the file's [hardware] table).
+    let set_point = [0.0, 0.0, -0.04, 0.0, -0.065, 0.0];
+    let zero = [0.0; 6];
+    let reference = Reference {
+        q: &set_point,
+        qd: &zero,
+        qdd: &zero,
+    };
+    let status = tick(&model, &mut controller, &q, &qd, reference);
+    assert_eq!(status, TickStatus::Filtered, "{:?}", controller.qp_report());
+    assert_eq!(controller.gave_way(), GaveWay::EndMargins);
+    // Every row the command was given is met (the end rows without their margins).
+    let (rows, rhs) = controller.constraints();
+    let nq = 6;
+    for (r, want) in rhs.iter().enumerate() {
+        let have: f64 = (0..nq)
+            .map(|i| rows[r * nq + i] * controller.tau()[i])
+            .sum();
+        assert!(
+            have >= want - 1e-7 * (1.0 + want.abs()),
+            "row {r}: {have} < {want}"
+        );
+    }
+}

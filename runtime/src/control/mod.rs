@@ -408,6 +408,8 @@ pub struct Controller {
     /// How long before the tick the state was read when it was predicted to the tick by the
     /// model \[s\]: the robust margin covers the mismatch over it too.
     margin_age: f64,
+    /// Which predicted rows gave way on the last tick.
+    gave_way: GaveWay,
 }
 
 /// What the sampled-data rows need besides the controller's own buffers.
@@ -437,6 +439,8 @@ struct SampledWorkspace {
     state: Vec<f64>,
     /// The robust margin for the declared uncertainty (`None` when none is declared).
     robust: Option<RobustMargin>,
+    /// The rows' right-hand sides as written, while [`solve_giving_way`] changes them.
+    written: Vec<f64>,
 }
 
 /// One plant at a corner of the declared box, one number off at a time.
@@ -772,6 +776,7 @@ impl SampledWorkspace {
                 .expect("the prediction's tolerances are valid"),
             state: vec![0.0; 2 * nq],
             robust: None,
+            written: vec![0.0; nb * (samples + 1)],
         }
     }
 }
@@ -851,6 +856,7 @@ impl Controller {
             sampled,
             certified,
             margin_age: 0.0,
+            gave_way: GaveWay::Nothing,
         })
     }
 
@@ -953,6 +959,12 @@ impl Controller {
     /// was made (`None` in the other modes).
     pub fn certified_split(&self) -> Option<certified::CertifiedSplit> {
         self.certified.as_ref().map(|certified| certified.split)
+    }
+
+    /// Which of the predicted rows gave way on the last tick where they had no common
+    /// point ([`GaveWay`]; `Nothing` in the other modes).
+    pub fn gave_way(&self) -> GaveWay {
+        self.gave_way
     }
 
     /// Report of the last QP solve (statuses, iterations, relaxed rows).
@@ -1359,7 +1371,7 @@ pub(super) fn sampled_filter(
         offset: &sampled.offset,
     };
     end.write(m, &mut controller.rows, &mut controller.rhs);
-    let mut status = solve_rows(controller);
+    let mut status = solve_giving_way(controller, m);
     for _ in 1..controller.settings.sampled.passes {
         if status.is_fallback() {
             break;
@@ -1461,9 +1473,58 @@ pub(super) fn sampled_filter(
                 }
             }
         }
-        status = solve_rows(controller);
+        status = solve_giving_way(controller, m);
     }
     status
+}
+
+/// Which rows of the predicted rows gave way on the last tick (see [`solve_giving_way`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GaveWay {
+    /// None: the command meets every row as written.
+    #[default]
+    Nothing,
+    /// The end-of-hold rows' robust margins (the command meets every other row as
+    /// written, and the end rows without their margins).
+    EndMargins,
+}
+
+/// Solves the predicted rows (`m` samples and the end of the hold, `nb` barriers each);
+/// where they have no common point, the end-of-hold rows' robust margins give way before
+/// any row is relaxed. Those rows do not keep a barrier over this hold: they keep the next
+/// hold's first samples from asking more than the velocity gives (a floor is never below
+/// zero while its barrier is above it, whatever the velocity, docs/model.md §5), and their
+/// margin asks that of every plant in the box; the samples' rows, which keep the barriers
+/// over this hold with their margins, stay as written. Only if those rows have no common
+/// point either is the problem relaxed (status `Relaxed`). The samples' floors do not give
+/// way: letting them go (keeping only `b ≥ 0` at the samples) was tried on the hardware
+/// walk-through and drove module 1 10–17 mm past its limit, because cables that only pull
+/// cannot brake an approach the floors did not slow in time. Which rows gave way is in
+/// [`Controller::gave_way`].
+fn solve_giving_way(controller: &mut Controller, m: usize) -> TickStatus {
+    controller.gave_way = GaveWay::Nothing;
+    if let Some(status) = try_rows(controller) {
+        return status;
+    }
+    let nb = controller.nb;
+    let Some(sampled) = controller.sampled.as_mut() else {
+        return solve_rows(controller);
+    };
+    let written = (m + 1) * nb;
+    sampled.written[..written].copy_from_slice(&controller.rhs[..written]);
+    if let Some(robust) = sampled.robust.as_ref() {
+        for r in m * nb..written {
+            controller.rhs[r] -= robust.margin[r];
+        }
+        if let Some(status) = try_rows(controller) {
+            controller.gave_way = GaveWay::EndMargins;
+            return status;
+        }
+    }
+    if let Some(sampled) = controller.sampled.as_ref() {
+        controller.rhs[..written].copy_from_slice(&sampled.written[..written]);
+    }
+    solve_rows(controller)
 }
 
 /// Step of the central differences of `G` \[m\]: their truncation error (`~δ² G‴`) and

@@ -112,8 +112,8 @@ pub struct RunArgs {
     /// (default: 33, the paper's). A rate the bus cannot hold is refused at the start.
     #[arg(long, allow_hyphen_values = true)]
     pub rate: Option<String>,
-    /// How the filter keeps the barriers between ticks: `sampled`, `paper` or
-    /// `hold-correction` (default: the robot file's `[hardware] safety`, else `sampled`;
+    /// How the filter keeps the barriers between ticks: `certified`, `predicted`, `paper` or
+    /// `hold-correction` (default: the robot file's `[hardware] safety`, else `certified`;
     /// docs/model.md §5).
     #[arg(long, value_name = "MODE", value_parser = SafetyMode::parse)]
     pub safety: Option<SafetyMode>,
