@@ -62,6 +62,9 @@ pub enum Uncertified {
     /// proven margins grew beyond what the rows assumed): `τ` satisfies the prediction's
     /// rows tightened by the last proven margins.
     Bound,
+    /// The tick's time for the bound ([`super::Controller::set_compute_budget`]) ran out
+    /// before an attempt was proven.
+    Budget,
 }
 
 impl Uncertified {
@@ -72,6 +75,7 @@ impl Uncertified {
             Uncertified::Domain => "domain",
             Uncertified::Start => "start",
             Uncertified::Bound => "bound",
+            Uncertified::Budget => "budget",
         }
     }
 }
@@ -563,7 +567,12 @@ fn certified_attempts(
     // prediction), a command closer to holding the state (`u = 0`).
     let mut outcome = TickStatus::Uncertified(Uncertified::Bound);
     ws.shrink = f64::INFINITY;
+    let started = Instant::now();
     for attempt in 0..ATTEMPTS {
+        if attempt > 0 && started.elapsed().as_secs_f64() > controller.compute_budget {
+            outcome = TickStatus::Uncertified(Uncertified::Budget);
+            break;
+        }
         first_pass_rows(controller);
         split.prediction += lap(mark);
         let first = try_rows(controller);

@@ -408,6 +408,9 @@ pub struct Controller {
     /// How long before the tick the state was read when it was predicted to the tick by the
     /// model \[s\]: the robust margin covers the mismatch over it too.
     margin_age: f64,
+    /// Seconds a certified tick may spend on attempts before it takes the predicted rows'
+    /// command (infinite: no limit).
+    compute_budget: f64,
     /// Which predicted rows gave way on the last tick.
     gave_way: GaveWay,
 }
@@ -856,6 +859,7 @@ impl Controller {
             sampled,
             certified,
             margin_age: 0.0,
+            compute_budget: f64::INFINITY,
             gave_way: GaveWay::Nothing,
         })
     }
@@ -907,6 +911,19 @@ impl Controller {
         let valid = age.is_finite() && age >= 0.0;
         if valid {
             self.margin_age = age;
+        }
+        valid
+    }
+
+    /// Limits the time a certified tick spends on its attempts \[s\]: once an attempt ends
+    /// past it, no further attempt starts, and the tick takes the predicted rows' command
+    /// with the status `uncertified (budget)`. For a loop with a deadline (the hardware
+    /// loop); the default, infinite, keeps a simulation's results independent of the
+    /// machine's speed. A value that is not positive (or NaN) is refused (`false`).
+    pub fn set_compute_budget(&mut self, seconds: f64) -> bool {
+        let valid = seconds > 0.0;
+        if valid {
+            self.compute_budget = seconds;
         }
         valid
     }

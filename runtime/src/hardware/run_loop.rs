@@ -92,6 +92,13 @@ pub const RATE_WINDOW: usize = 8;
 /// a 10 % allowance for the loop's jitter.
 pub const HOLD_ALLOWANCE: f64 = 1.1;
 
+/// Share of the period a certified tick may spend on its attempts before it takes the
+/// predicted rows' command (`Controller::set_compute_budget`): the rest of the period is
+/// for that command, the state's prediction and the bus. Measured against the emulator on
+/// this 2-core machine under load, without it a third of the ticks of a run with a declared
+/// box overran their deadline (docs/hardware.md).
+pub const COMPUTE_BUDGET: f64 = 0.25;
+
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
@@ -242,6 +249,7 @@ pub fn run_reporting<P: ServoPort>(
     controller_settings.safety = hardware.safety.unwrap_or_default();
     controller_settings.hold = period;
     let mut controller = Controller::new(model, controller_settings.clone())?;
+    controller.set_compute_budget(COMPUTE_BUDGET * period);
     let n = map.n_servos();
     let mut io = ServoIo::new(hardware.servo_ids());
     let mut ws = Workspace {
@@ -429,6 +437,7 @@ fn time_computation(
     let mut controller = Controller::new(model, settings)?;
     controller.set_hold(hold);
     controller.set_margin_age(age);
+    controller.set_compute_budget(COMPUTE_BUDGET * hold);
     let mut times = [0.0_f64; COMPUTE_SAMPLES + 1];
     for time in &mut times {
         let start = Instant::now();
