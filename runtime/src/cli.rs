@@ -15,7 +15,7 @@ use crate::settings::GainOptions;
 pub const PAPER_SIM_ROBOT: &str = include_str!("../../robots/paper-sim.toml");
 
 /// Loads `path`, or the embedded paper simulation robot when `None`. A `[hardware]` table
-/// is checked too ([`crate::hardware::description::load`]), so that a robot file is either
+/// is checked too ([`crate::hardware_description::load`]), so that a robot file is either
 /// valid as a whole or refused, whichever subcommand reads it.
 pub fn load_robot(path: Option<&Path>) -> Result<Robot, RobotError> {
     let robot = match path {
@@ -25,7 +25,7 @@ pub fn load_robot(path: Option<&Path>) -> Result<Robot, RobotError> {
             &PathBuf::from("<embedded robots/paper-sim.toml>"),
         )?,
     };
-    crate::hardware::description::load(&robot)?;
+    crate::hardware_description::load(&robot)?;
     Ok(robot)
 }
 

@@ -12,9 +12,9 @@ use softcbf::cli::{
 };
 use softcbf::control::SafetyMode;
 use softcbf::exit;
-use softcbf::hardware::cli::output_directory;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
+use softcbf::output::output_directory;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{settings_report, simulate};

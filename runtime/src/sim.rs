@@ -24,9 +24,9 @@ use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
 
 use crate::control::{self, Controller, ControllerError, TickStatus};
-use crate::hardware::emulator::servos::standard_normal;
 use crate::integrator::IntegratorError;
 use crate::model::{Model, ModelError};
+use crate::noise::standard_normal;
 use crate::plant::Plant;
 use crate::record::{Columns, Record, RecordError, Row};
 use crate::reference::ReferenceSignal;

@@ -14,7 +14,7 @@ use softcbf::cli::{
     check_number, load_robot, parse_coordinates, parse_integer, parse_number, parse_vector,
     parse_velocities,
 };
-use softcbf::hardware::limits as servo;
+use softcbf::hardware_description::limits as servo;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
 use softcbf_description::limits;

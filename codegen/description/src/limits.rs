@@ -284,7 +284,7 @@ pub const MAX_STEPS: Limit = Limit::integer(1, 10_000_000);
 
 // ---------------------------------------------------------------------------------------
 // The hardware loop (`softcbf run`); the servo and bus settings are the runtime's
-// (`softcbf::hardware::limits`).
+// (`softcbf::hardware_description::limits`).
 
 /// Loop rate \[Hz\]: below 1 Hz a soft robot moves a barrier's width between ticks; above
 /// 10 kHz no servo bus answers (6 servos at 4.5 Mbit/s: ≈ 2 kHz).

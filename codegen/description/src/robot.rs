@@ -69,7 +69,7 @@ pub struct Robot {
     /// the command line nor the scenario gives a reference.
     pub set_point: Option<Vec<f64>>,
     /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
-    /// reads and checks it (`softcbf::hardware::description`).
+    /// reads and checks it (`softcbf::hardware_description`).
     pub hardware: Option<HardwareTable>,
 }
 

@@ -82,7 +82,7 @@ impl Controller {
             Some(name) => {
                 SafetyMode::parse(name).map_err(|e| value_error(format!("safety: {e}")))?
             }
-            None => softcbf::hardware::description::load(&model.robot)
+            None => softcbf::hardware_description::load(&model.robot)
                 .ok()
                 .flatten()
                 .and_then(|hardware| hardware.safety)

@@ -5,8 +5,8 @@
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use crate::hardware::description::Hardware;
 use crate::hardware::log_description::LogDescription;
+use crate::hardware_description::Hardware;
 use crate::model::Model;
 use crate::plot::{FigureOptions, write_figures};
 use crate::record::{Columns, CsvWriter, Record, Row, as_strs, coordinate_names};

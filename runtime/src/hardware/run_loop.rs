@@ -42,7 +42,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::hardware::description::VelocitySource;
+use crate::hardware_description::VelocitySource;
 use softcbf_description::domain;
 
 use crate::control::{
@@ -63,7 +63,7 @@ pub use crate::hardware::bus_check::RateRule;
 use crate::hardware::log::FIXED_EXTRA;
 pub use crate::hardware::log::{RunLog, extra_columns};
 pub use crate::hardware::run_outcome::{Deadlines, RunSummary, StopReason, Verdict};
-pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RunSettings};
+pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RATE_WINDOW, RunSettings};
 pub use crate::record::Row;
 
 /// Time on the wire \[s\] of the goal-current sync write to `servos` servos at `baud`:
@@ -84,9 +84,6 @@ pub fn prediction_tolerances() -> Tolerances {
         ..Tolerances::default()
     }
 }
-
-/// Commands over which the achieved rate and the hold period are measured.
-pub const RATE_WINDOW: usize = 8;
 
 /// The factor on the longest recent interval that gives the hold a command is computed for:
 /// a 10 % allowance for the loop's jitter.

@@ -12,9 +12,9 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
-use crate::hardware::description::Hardware;
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::run_loop::command_wire_time;
+use crate::hardware_description::Hardware;
 use crate::record::{TIME, coordinate_names};
 
 use super::IdentifyError;

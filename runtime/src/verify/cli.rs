@@ -11,9 +11,9 @@ use clap::{Args, Subcommand};
 
 use crate::cli::{check_number, load_robot};
 use crate::exit;
-use crate::hardware::cli::output_directory;
 use crate::hardware::signal;
 use crate::model::Model;
+use crate::output::output_directory;
 use crate::output::{Console, one_line, write_outputs};
 use crate::scenario::ScenarioFile;
 use crate::sim::simulate;

@@ -50,8 +50,8 @@ use std::time::{Duration, Instant};
 use softcbf_description::robot::Robot;
 
 use crate::hardware::control_table::ServoState;
-use crate::hardware::description;
 use crate::hardware::mapping::{MappingError, TendonMap};
+use crate::hardware_description as description;
 use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::{Model, ModelError};
 use crate::plant::Plant;
@@ -400,7 +400,7 @@ fn setting(message: String) -> EmulatorError {
 
 /// Refuses settings the emulator cannot use, naming the setting.
 fn check(settings: &EmulatorSettings) -> Result<(), EmulatorError> {
-    use crate::hardware::limits::{LATENCY_TIMER_MS, NOISE_UNITS};
+    use crate::hardware_description::limits::{LATENCY_TIMER_MS, NOISE_UNITS};
     let latency_ms = settings.latency_timer.as_secs_f64() * 1e3;
     if latency_ms > LATENCY_TIMER_MS.max {
         return Err(setting(format!(
