@@ -27,14 +27,15 @@
 //! | [`hardware`] | the servos driven by the same tick (`softcbf run`), and their emulator |
 //! | [`identify`] | `softcbf identify`: stiffness, damping and actuator gains from run logs |
 //! | [`verify`] | `softcbf verify`: many closed-loop runs drawn from declared ranges, sharded and merged |
-//! | [`cli`] | what the subcommands share: loading robots, reading vectors and numbers |
+//! | [`robot_file`] | a robot file loaded and checked as a whole (`[hardware]` included); the embedded paper robot |
+//! | [`cli`] | what the subcommands share: reading vectors and numbers, the simulate options |
 //! | [`verdict`] | one verdict per run (safe, unsafe, not run), whichever command computes it |
 //! | [`exit`] | the command's exit statuses (safe, unsafe, fault, never started) |
 //!
 //! # One control tick
 //!
 //! ```
-//! use softcbf::cli::load_robot;
+//! use softcbf::robot_file::load_robot;
 //! use softcbf::control::{Controller, ControllerSettings, Reference, TickStatus, tick};
 //! use softcbf::model::Model;
 //!
@@ -76,6 +77,7 @@ pub mod qp;
 pub mod record;
 pub mod reference;
 pub mod replot;
+pub mod robot_file;
 pub mod scenario;
 pub mod settings;
 pub mod sim;

@@ -154,7 +154,7 @@ pub struct ScenarioFile {
 }
 
 /// An array of numbers, each with its span.
-type RawVector = Spanned<Vec<Spanned<f64>>>;
+pub(crate) type RawVector = Spanned<Vec<Spanned<f64>>>;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -181,7 +181,7 @@ struct RawScenario {
     #[serde(default)]
     integrator: RawIntegrator,
     /// `softcbf verify`'s ranges, read by [`crate::verify::spec`].
-    verify: Option<crate::verify::spec::RawVerify>,
+    verify: Option<RawVerify>,
 }
 
 /// One module's `[[plant_factors]]`.
@@ -244,12 +244,33 @@ struct RawIntegrator {
     max_steps: Option<Spanned<i64>>,
 }
 
+/// `[verify]` as serde reads it: kept by the scenario file, checked by
+/// [`crate::verify::spec`].
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawVerify {
+    pub(crate) runs: Option<Spanned<i64>>,
+    pub(crate) seed: Option<Spanned<i64>>,
+    pub(crate) duration: Option<Spanned<f64>>,
+    pub(crate) record_period: Option<Spanned<f64>>,
+    pub(crate) threshold: Option<Spanned<f64>>,
+    pub(crate) safety: Option<Spanned<Vec<Spanned<String>>>>,
+    pub(crate) control_periods: Option<RawVector>,
+    pub(crate) set_point_min: Option<RawVector>,
+    pub(crate) set_point_max: Option<RawVector>,
+    pub(crate) initial_q_min: Option<RawVector>,
+    pub(crate) initial_q_max: Option<RawVector>,
+    pub(crate) initial_qd_min: Option<RawVector>,
+    pub(crate) initial_qd_max: Option<RawVector>,
+    pub(crate) parameter_errors: Option<Spanned<bool>>,
+    pub(crate) sensor_noise_q: Option<Spanned<f64>>,
+    pub(crate) sensor_noise_qd: Option<Spanned<f64>>,
+}
+
 /// Default control period \[s\] (the paper's simulation ticks at 1 kHz).
 pub const DEFAULT_CONTROL_PERIOD: f64 = 1e-3;
 /// Default duration \[s\].
 pub const DEFAULT_DURATION: f64 = 10.0;
-/// The paper's gains: `K_P = 5·I` \[N/m\], `K_D = 1·I` \[N·s/m\].
-pub const PAPER_GAINS: (f64, f64) = (5.0, 1.0);
 /// Most ticks a scenario may ask for (a guard against typos such as `duration = 1e9`).
 pub const MAX_TICKS: f64 = 1e8;
 /// Most rows a run may record, ticks and rows between them (the record is held in memory).
@@ -330,7 +351,7 @@ impl ScenarioFile {
     }
 
     /// The `[verify]` table, if the file has one.
-    pub(crate) fn verify_table(&self) -> Option<&crate::verify::spec::RawVerify> {
+    pub(crate) fn verify_table(&self) -> Option<&RawVerify> {
         self.raw.verify.as_ref()
     }
 
@@ -363,7 +384,7 @@ impl ScenarioFile {
         let (Some(given), Some(path)) = (&self.raw.robot, self.robot_path()) else {
             return Ok(None);
         };
-        match crate::cli::load_robot(Some(&path)) {
+        match crate::robot_file::load_robot(Some(&path)) {
             Err(FileError::Io { source, .. }) => {
                 let c = Checker {
                     text: &self.text,
@@ -470,13 +491,13 @@ impl ScenarioFile {
         // (the run's may be another one, given on the command line).
         let replaced = overrides.set_point.is_some() && self.raw.reference.is_some()
             || overrides.plant.is_some() && self.plant_path().is_some();
-        let file_robot = match replaced {
-            true => Some(
-                self.load_robot()
-                    .and_then(|robot| robot.map_or_else(|| crate::cli::load_robot(None), Ok))?,
-            ),
-            false => None,
-        };
+        let file_robot =
+            match replaced {
+                true => Some(self.load_robot().and_then(|robot| {
+                    robot.map_or_else(|| crate::robot_file::load_robot(None), Ok)
+                })?),
+                false => None,
+            };
         let own = file_robot.as_ref().unwrap_or(&model.robot);
         if overrides.plant.is_some() && self.plant_path().is_some() {
             self.plant(&c, own, &Overrides::default())?;
@@ -691,7 +712,7 @@ impl ScenarioFile {
             }
         };
         let resolved = std::path::absolute(&path).unwrap_or_else(|_| path.clone());
-        let robot = match crate::cli::load_robot(Some(&path)) {
+        let robot = match crate::robot_file::load_robot(Some(&path)) {
             Ok(robot) => robot,
             Err(FileError::Io { source: error, .. }) => {
                 let taken = match source {
@@ -786,12 +807,10 @@ impl ScenarioFile {
                 .transpose()
                 .map(|v| v.unwrap_or(0.0))
         };
-        let q = number(&t.q, "q", &crate::verify::spec::SENSOR_NOISE_M)?;
-        let qd = number(&t.qd, "qd", &crate::verify::spec::SENSOR_NOISE_M_PER_S)?;
+        let q = number(&t.q, "q", &crate::noise::SENSOR_NOISE_M)?;
+        let qd = number(&t.qd, "qd", &crate::noise::SENSOR_NOISE_M_PER_S)?;
         let seed = match &t.seed {
-            Some(seed) => {
-                c.integer_within(seed, "sensor_noise.seed", &crate::verify::spec::SEED)? as u64
-            }
+            Some(seed) => c.integer_within(seed, "sensor_noise.seed", &crate::noise::SEED)? as u64,
             None => 0,
         };
         Ok(Some(SensorNoise { q, qd, seed }))

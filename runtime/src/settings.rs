@@ -19,13 +19,21 @@ use std::fmt;
 use std::path::Path;
 
 use serde::Serialize;
-use softcbf_description::gains::{GainForm, scaled_identity, written_form};
-use softcbf_description::limits;
-use softcbf_description::robot::{DEFAULT_BARRIER_GAINS, Robot};
+use softcbf_description::gains::{
+    DEFAULT_BARRIER_GAINS, GainForm, PAPER_GAINS, scaled_identity, written_form,
+};
+use softcbf_description::limits::{self, Limit};
+use softcbf_description::robot::Robot;
 
-use crate::cli::check_number;
 use crate::control::{ControllerSettings, SafetyMode};
-use crate::scenario::PAPER_GAINS;
+
+/// Checks a number given for option `name` against its [`Limit`] (the same rule as the
+/// description files): `--rate: must be ≥ 1 and ≤ 10000 Hz, got -33`.
+pub fn check_number(name: &str, value: f64, limit: &Limit) -> Result<f64, String> {
+    limit
+        .check(value)
+        .map_err(|message| format!("{name}: {message}"))
+}
 
 /// Where a setting's value came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

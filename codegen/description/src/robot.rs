@@ -19,7 +19,7 @@ use toml::Spanned;
 
 use crate::barrier_tables::{LimitsTable, ObstacleTable};
 use crate::barriers::{Limits, Obstacle, ObstacleStructure};
-use crate::gains::RawGain;
+use crate::gains::{DEFAULT_BARRIER_GAINS, RawGain};
 use crate::limits;
 pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
@@ -121,8 +121,6 @@ pub struct Structure {
 
 /// Default gravity when the file gives none [m/s²].
 pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
-/// Default HOCBF gains `p1`, `p2` when the file gives none [1/s] (§5 of the model notes).
-pub const DEFAULT_BARRIER_GAINS: [f64; 2] = [10.0, 10.0];
 pub use crate::limits::MAX_MODULES;
 /// Text of `robots/paper-sim.toml`, compiled in.
 pub const PAPER_SIM_TOML: &str = include_str!("../../../robots/paper-sim.toml");

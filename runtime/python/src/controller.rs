@@ -9,9 +9,9 @@ use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
-use softcbf::cli::check_number;
 use softcbf::control::{ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus, tick};
 use softcbf::model::Model;
+use softcbf::settings::check_number;
 use softcbf::settings::{GainOptions, ScenarioGains, resolve_gains};
 use softcbf_description::limits;
 

@@ -10,7 +10,7 @@ use clap::Args;
 use softcbf_description::limits::{self, Limit};
 use softcbf_description::robot::Robot;
 
-use crate::cli::{check_number, parse_coordinates, parse_number};
+use crate::cli::{parse_coordinates, parse_number};
 use crate::control::SafetyMode;
 use crate::exit;
 use crate::hardware::bus_check::{self, BusTiming, LatencyTimer, RateChoice, RateRule};
@@ -30,8 +30,8 @@ use crate::model::Model;
 use crate::output::{Console, output_directory};
 use crate::protocol::Bus;
 use crate::settings::{
-    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, file_name,
-    resolve_gains, software, vector_text,
+    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, check_number,
+    file_name, resolve_gains, software, vector_text,
 };
 use crate::sim::BarrierMinimum;
 use crate::verdict::Limits as VerdictLimits;
