@@ -132,6 +132,13 @@ pub fn short(x: f64) -> String {
     }
 }
 
+/// `x` to nine significant digits, in the shortest form (`-0.05`, not
+/// `-0.04999999999999999`): for lengths computed from written ones.
+pub(crate) fn rounded(x: f64) -> String {
+    let nine: f64 = format!("{x:.8e}").parse().unwrap_or(x);
+    short(nine)
+}
+
 // ---------------------------------------------------------------------------------------
 // The robot file: modules, gravity, barrier gains.
 

@@ -25,7 +25,7 @@ pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
 use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
-use crate::uncertainty::{Uncertainty, UncertaintyTable};
+use crate::uncertainty_box::{Uncertainty, UncertaintyTable};
 
 /// How tendons are routed (§6 of the model notes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
@@ -367,7 +367,7 @@ impl Checker<'_> {
                         ),
                     ));
                 }
-                let problem = crate::domain::modules_coordinates_problem(&modules, &values);
+                let problem = crate::module_domain::modules_coordinates_problem(&modules, &values);
                 self.state(problem, v, "set_point")?;
                 Some(values)
             }
