@@ -21,7 +21,7 @@ use toml::Spanned;
 use crate::control::{ControllerSettings, SafetyMode};
 use crate::integrator::Tolerances;
 use crate::model::Model;
-use crate::qp::QpSettings;
+use crate::noise::SensorNoise;
 use crate::reference::ReferenceSpec;
 use crate::settings::{GainOptions, Gains, ScenarioGains, Source, Sourced, first, resolve_gains};
 
@@ -61,25 +61,13 @@ pub struct Scenario {
     /// its numbers may differ (model mismatch).
     pub plant: Option<Robot>,
     /// Noise on the state the controller samples (`None`: it samples the plant's state
-    /// exactly): the file's `[sensor_noise]`, or set by `softcbf verify` per run.
+    /// exactly), independent per coordinate and tick: `position` on `q` \[m\], `velocity`
+    /// on `q̇` \[m/s\]. The file's `[sensor_noise]`, or set by `softcbf verify` per run.
     pub sensor_noise: Option<SensorNoise>,
     /// The scenario file (`<embedded …>` for the built-in one).
     pub file: String,
     /// Where the layered settings came from.
     pub sources: Sources,
-}
-
-/// Gaussian noise added to every sample of the state the controller is given: independent
-/// per coordinate and tick, drawn from one seeded generator (the same seed gives the same
-/// noise).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SensorNoise {
-    /// Standard deviation on `q` \[m\].
-    pub q: f64,
-    /// Standard deviation on `q̇` \[m/s\].
-    pub qd: f64,
-    /// Seed of the draws.
-    pub seed: u64,
 }
 
 /// Where a scenario's layered settings came from ([`crate::settings`]): the command line,
@@ -604,18 +592,12 @@ impl ScenarioFile {
             ],
             false,
         );
-        let mut controller = ControllerSettings {
-            kp: Vec::new(),
-            kd: Vec::new(),
-            barrier_gains: [0.0; 2],
+        let controller = ControllerSettings {
             filter: filter.value,
             safety: safety.value,
             hold: period,
-            sampled: Default::default(),
-            input_limits: (Vec::new(), Vec::new()),
-            qp: QpSettings::default(),
+            ..gains.controller_settings()
         };
-        gains.apply(&mut controller);
         Ok(Scenario {
             name,
             file: self.path.display().to_string(),
@@ -813,7 +795,11 @@ impl ScenarioFile {
             Some(seed) => c.integer_within(seed, "sensor_noise.seed", &crate::noise::SEED)? as u64,
             None => 0,
         };
-        Ok(Some(SensorNoise { q, qd, seed }))
+        Ok(Some(SensorNoise {
+            position: q,
+            velocity: qd,
+            seed,
+        }))
     }
 
     /// The file's `safety` (or its old spelling `hold_correction = true | false`), if given.
@@ -1137,6 +1123,45 @@ mod tests {
             (paper.duration, paper.control_period, &paper.reference)
         );
         assert!(default.compare && paper.compare);
+    }
+
+    #[test]
+    fn the_paper_scenario_builds_the_paper_controller_with_its_period_and_rows() {
+        // One way to build controller settings: a scenario's are the paper's (the built-in
+        // gains, K_P = 5·I and K_D = 1·I) with the scenario's hold, rows and filter.
+        let model = model();
+        let scenario = ScenarioFile::paper_sim().resolve(&model).unwrap();
+        let nq = model.nq();
+        let identity = |k: f64| {
+            (0..nq * nq)
+                .map(|i| if i % (nq + 1) == 0 { k } else { 0.0 })
+                .collect::<Vec<_>>()
+        };
+        let expected = ControllerSettings {
+            kp: identity(5.0),
+            kd: identity(1.0),
+            hold: 1e-3,
+            safety: SafetyMode::Paper,
+            ..ControllerSettings::paper(&model)
+        };
+        assert_eq!(scenario.controller, expected);
+    }
+
+    #[test]
+    fn sensor_noise_of_a_scenario_is_the_one_sensor_noise() {
+        let scenario = resolve("[sensor_noise]\nq = 1e-4\nqd = 2e-3\nseed = 5\n").unwrap();
+        let noise = SensorNoise {
+            position: 1e-4,
+            velocity: 2e-3,
+            seed: 5,
+        };
+        assert_eq!(scenario.sensor_noise, Some(noise));
+        // The emulator's readings take the same type.
+        let settings = crate::hardware::emulator::EmulatorSettings {
+            noise,
+            ..crate::hardware::emulator::EmulatorSettings::new(1_000_000)
+        };
+        assert!(settings.noise.is_on());
     }
 
     #[test]

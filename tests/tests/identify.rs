@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use rand::RngExt;
-use softcbf::hardware::emulator::SensorNoise;
 use softcbf::hardware::log_description::LogDescription;
 use softcbf::hardware_description::Hardware;
 use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, Tick, write_log};
@@ -17,6 +16,7 @@ use softcbf::identify::{
     identify, logs::Expected, output, read_logs,
 };
 use softcbf::model::Model;
+use softcbf::noise::SensorNoise;
 use softcbf::output::Console;
 use softcbf_description::robot::Robot;
 use softcbf_tests::robots;

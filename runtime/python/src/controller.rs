@@ -88,11 +88,12 @@ impl Controller {
                 .and_then(|hardware| hardware.safety)
                 .unwrap_or_default(),
         };
-        let mut settings = ControllerSettings::paper(&model);
-        resolve_gains(&gains, &ScenarioGains::default(), &model.robot).apply(&mut settings);
-        settings.filter = filter;
-        settings.safety = safety;
-        settings.hold = period;
+        let settings = ControllerSettings {
+            filter,
+            safety,
+            hold: period,
+            ..resolve_gains(&gains, &ScenarioGains::default(), &model.robot).controller_settings()
+        };
         let controller = softcbf::control::Controller::new(&model, settings)
             .map_err(|e| value_error(e.to_string()))?;
         let zeros = vec![0.0; model.nq()];

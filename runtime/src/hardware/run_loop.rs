@@ -228,16 +228,15 @@ pub fn run_reporting<P: ServoPort>(
     let nq = model.nq();
     settings.validate(nq).map_err(RunError::Setting)?;
     let hardware = map.hardware();
-    let mut controller_settings = ControllerSettings::paper(model);
-    settings
-        .gains_for(&model.robot)
-        .apply(&mut controller_settings);
-    controller_settings.filter = settings.filter;
-    // The filter chooses among the commands the cables can realize.
-    controller_settings.input_limits = map.tension_limit_rows();
     let period = 1.0 / settings.rate;
-    controller_settings.safety = hardware.safety.unwrap_or_default();
-    controller_settings.hold = period;
+    let controller_settings = ControllerSettings {
+        filter: settings.filter,
+        // The filter chooses among the commands the cables can realize.
+        input_limits: map.tension_limit_rows(),
+        safety: hardware.safety.unwrap_or_default(),
+        hold: period,
+        ..settings.gains_for(&model.robot).controller_settings()
+    };
     let mut controller = Controller::new(model, controller_settings.clone())?;
     let n = map.n_servos();
     let mut io = ServoIo::new(hardware.servo_ids());

@@ -8,8 +8,9 @@ use softcbf_description::uncertainty::{self, ModuleFactors};
 
 use crate::control::SafetyMode;
 use crate::model::Model;
+use crate::noise::SensorNoise;
 use crate::reference::ReferenceSpec;
-use crate::scenario::{Scenario, SensorNoise};
+use crate::scenario::Scenario;
 use crate::verify::spec::{Bounds, INITIAL_STATE_TRIES, VerifySpec};
 
 /// One run's draws.
@@ -53,8 +54,8 @@ impl Draw {
         }
         if spec.sensor_noise.iter().any(|&s| s > 0.0) {
             scenario.sensor_noise = Some(SensorNoise {
-                q: spec.sensor_noise[0],
-                qd: spec.sensor_noise[1],
+                position: spec.sensor_noise[0],
+                velocity: spec.sensor_noise[1],
                 seed: self.noise_seed,
             });
         }

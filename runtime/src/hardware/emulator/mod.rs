@@ -54,6 +54,7 @@ use crate::hardware::mapping::{MappingError, TendonMap};
 use crate::hardware_description as description;
 use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::{Model, ModelError};
+use crate::noise::SensorNoise;
 use crate::plant::Plant;
 use device::Device;
 
@@ -89,37 +90,6 @@ impl Default for Faults {
             silent_after: Duration::ZERO,
             seed: 1,
         }
-    }
-}
-
-/// Gaussian noise added to the readings before the servo rounds them to register units.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SensorNoise {
-    /// Standard deviation of Present Position \[position units\].
-    pub position: f64,
-    /// Standard deviation of Present Velocity \[velocity units\].
-    pub velocity: f64,
-    /// Seed of the noise draws (a stream of its own: noise does not shift the faults).
-    pub seed: u64,
-}
-
-impl SensorNoise {
-    /// No noise.
-    pub const NONE: SensorNoise = SensorNoise {
-        position: 0.0,
-        velocity: 0.0,
-        seed: 1,
-    };
-
-    /// Whether any noise is added.
-    pub fn is_on(&self) -> bool {
-        self.position > 0.0 || self.velocity > 0.0
-    }
-}
-
-impl Default for SensorNoise {
-    fn default() -> Self {
-        SensorNoise::NONE
     }
 }
 

@@ -47,10 +47,10 @@ use std::time::Duration;
 use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
 
-use super::SensorNoise;
 use crate::hardware::control_table::{self as table, Access, Area, Item, ServoState, Values};
 use crate::hardware::mapping::TendonMap;
 use crate::integrator::IntegratorError;
+use crate::noise::SensorNoise;
 use crate::noise::standard_normal;
 use crate::plant::Plant;
 use crate::protocol::{
