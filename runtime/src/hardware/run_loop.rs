@@ -60,7 +60,7 @@ use crate::protocol::{Bus, BusCounters};
 use crate::sim::{BarrierMinimum, LowestByKind};
 
 pub use crate::hardware::bus_check::RateRule;
-use crate::hardware::log::FIXED_EXTRA;
+use crate::hardware::log::{Extra, FIXED_EXTRA};
 pub use crate::hardware::log::{RunLog, extra_columns};
 pub use crate::hardware::run_outcome::{Deadlines, RunSummary, StopReason, Verdict};
 pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RATE_WINDOW, RunSettings};
@@ -859,28 +859,29 @@ fn push_row(
     clamps: Clamps,
 ) {
     let us = |d: Duration| d.as_secs_f64() * 1e6;
-    let fixed = [
-        f64::from(u8::from(fresh)),
-        status,
-        f64::from(io.attempts()),
-        f64::from(consecutive),
-        us(timing.read),
-        us(timing.compute),
-        us(timing.write),
-        us(timing.late),
-        f64::from(u8::from(timing.overrun)),
-        f64::from(clamps.low),
-        f64::from(clamps.high),
-        timing.age * 1e6,
-        timing.interval * 1e6,
-        timing.hold * 1e6,
-        timing.hold_excess * 1e6,
-        timing.gain_scale,
-        timing.sampled * 1e6,
-        ws.mark.map_or(f64::NAN, |m| m.step as f64),
-        f64::from(u8::from(fresh && ws.mark.is_some_and(|m| m.rest))),
-    ];
-    ws.extra[..FIXED_EXTRA].copy_from_slice(&fixed);
+    for column in Extra::ALL {
+        ws.extra[column.at()] = match column {
+            Extra::Fresh => f64::from(u8::from(fresh)),
+            Extra::Status => status,
+            Extra::Attempts => f64::from(io.attempts()),
+            Extra::CommErrors => f64::from(consecutive),
+            Extra::Read => us(timing.read),
+            Extra::Compute => us(timing.compute),
+            Extra::Write => us(timing.write),
+            Extra::Late => us(timing.late),
+            Extra::Overrun => f64::from(u8::from(timing.overrun)),
+            Extra::ClampLow => f64::from(clamps.low),
+            Extra::ClampHigh => f64::from(clamps.high),
+            Extra::Age => timing.age * 1e6,
+            Extra::Period => timing.interval * 1e6,
+            Extra::Hold => timing.hold * 1e6,
+            Extra::HoldExcess => timing.hold_excess * 1e6,
+            Extra::GainScale => timing.gain_scale,
+            Extra::Sampled => timing.sampled * 1e6,
+            Extra::Step => ws.mark.map_or(f64::NAN, |m| m.step as f64),
+            Extra::Rest => f64::from(u8::from(fresh && ws.mark.is_some_and(|m| m.rest))),
+        };
+    }
     let (n, nq) = (ws.tensions.len(), ws.q.len());
     let row = if fresh {
         ws.extra[FIXED_EXTRA..FIXED_EXTRA + n].copy_from_slice(&ws.tensions);
