@@ -12,9 +12,9 @@ use std::hint::black_box;
 
 use criterion::measurement::WallTime;
 use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
-use softcbf::cli::load_robot;
 use softcbf::control::{Controller, Reference, SafetyMode, tick};
 use softcbf::model::Model;
+use softcbf::robot_file::load_robot;
 use softcbf::scenario::{Scenario, ScenarioFile};
 use softcbf::sim::simulate;
 

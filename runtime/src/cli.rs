@@ -1,33 +1,16 @@
-//! Command-line helpers shared by the subcommands: loading robots, reading vectors.
+//! Command-line helpers shared by the subcommands: reading vectors and numbers (robots are
+//! loaded by [`crate::robot_file`]).
 //! Every error names what the user typed and what was expected.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use softcbf_description::domain;
 use softcbf_description::limits::Limit;
-use softcbf_description::robot::{Robot, RobotError};
+use softcbf_description::robot::Robot;
 
 use crate::control::SafetyMode;
 use crate::scenario::Overrides;
-use crate::settings::GainOptions;
-
-/// Text of the default robot, compiled into the binary.
-pub const PAPER_SIM_ROBOT: &str = include_str!("../../robots/paper-sim.toml");
-
-/// Loads `path`, or the embedded paper simulation robot when `None`. A `[hardware]` table
-/// is checked too ([`crate::hardware::description::load`]), so that a robot file is either
-/// valid as a whole or refused, whichever subcommand reads it.
-pub fn load_robot(path: Option<&Path>) -> Result<Robot, RobotError> {
-    let robot = match path {
-        Some(path) => Robot::load(path)?,
-        None => Robot::parse(
-            PAPER_SIM_ROBOT,
-            &PathBuf::from("<embedded robots/paper-sim.toml>"),
-        )?,
-    };
-    crate::hardware::description::load(&robot)?;
-    Ok(robot)
-}
+use crate::settings::{GainOptions, check_number};
 
 /// Parses `v,v,…` given for option `name`; it must have `expected` finite numbers.
 pub fn parse_vector(name: &str, text: &str, expected: usize) -> Result<Vec<f64>, String> {
@@ -52,14 +35,6 @@ pub fn parse_vector(name: &str, text: &str, expected: usize) -> Result<Vec<f64>,
         ));
     }
     Ok(values)
-}
-
-/// Checks a number given for option `name` against its [`Limit`] (the same rule as the
-/// description files): `--rate: must be ≥ 1 and ≤ 10000 Hz, got -33`.
-pub fn check_number(name: &str, value: f64, limit: &Limit) -> Result<f64, String> {
-    limit
-        .check(value)
-        .map_err(|message| format!("{name}: {message}"))
 }
 
 /// Parses a number given for option `name` and checks it against `limit`.

@@ -7,6 +7,7 @@
 //! | [`barrier_info`] | each barrier's numbers (margin, limits, obstacle geometry, watched point) from the robot |
 //! | [`spatial`] | spatial (6-D) vectors, compact transforms and rigid-body inertias (nalgebra) |
 //! | [`dynamics`] | `M`, `h = C q̇`, `G` by CRBA and RNEA, [`dynamics::model_terms`] for a tick, forward dynamics |
+//! | [`noise`] | seeded Gaussian draws: the one standard normal sampler |
 //! | [`linalg`] | small dense Cholesky and LU on preallocated slices, the one `dot` |
 //! | [`control`] | PD+, the HOCBF rows and the safety QP as one allocation-free [`control::tick`] |
 //! | [`qp`] | the safety-filter QP: dual active set, clarabel as reference and fallback |
@@ -22,17 +23,19 @@
 //! | [`output`] | what `softcbf simulate` writes and shows: CSVs, summary, figures, progress |
 //! | [`inspect`] | `softcbf model`: every generated and dynamic quantity at one state, as JSON |
 //! | [`protocol`] | Dynamixel Protocol 2.0 codec and bus client |
+//! | [`hardware_description`] | the robot file's `[hardware]` table read and checked, the ranges of servo and bus settings |
 //! | [`hardware`] | the servos driven by the same tick (`softcbf run`), and their emulator |
 //! | [`identify`] | `softcbf identify`: stiffness, damping and actuator gains from run logs |
 //! | [`verify`] | `softcbf verify`: many closed-loop runs drawn from declared ranges, sharded and merged |
-//! | [`cli`] | what the subcommands share: loading robots, reading vectors and numbers |
+//! | [`robot_file`] | a robot file loaded and checked as a whole (`[hardware]` included); the embedded paper robot |
+//! | [`cli`] | what the subcommands share: reading vectors and numbers, the simulate options |
 //! | [`verdict`] | one verdict per run (safe, unsafe, not run), whichever command computes it |
 //! | [`exit`] | the command's exit statuses (safe, unsafe, fault, never started) |
 //!
 //! # One control tick
 //!
 //! ```
-//! use softcbf::cli::load_robot;
+//! use softcbf::robot_file::load_robot;
 //! use softcbf::control::{Controller, ControllerSettings, Reference, TickStatus, tick};
 //! use softcbf::model::Model;
 //!
@@ -58,12 +61,14 @@ pub mod dynamics;
 pub mod enclosure;
 pub mod exit;
 pub mod hardware;
+pub mod hardware_description;
 pub mod hold;
 pub mod identify;
 pub mod inspect;
 pub mod integrator;
 pub mod linalg;
 pub mod model;
+pub mod noise;
 pub mod output;
 pub mod plant;
 pub mod plot;
@@ -72,6 +77,7 @@ pub mod qp;
 pub mod record;
 pub mod reference;
 pub mod replot;
+pub mod robot_file;
 pub mod scenario;
 pub mod settings;
 pub mod sim;

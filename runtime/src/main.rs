@@ -7,16 +7,17 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 
 use softcbf::cli::{
-    SimulateOptions, check_number, check_simulate_options, load_robot, parse_coordinates,
-    parse_vector, parse_velocities,
+    SimulateOptions, check_simulate_options, parse_coordinates, parse_vector, parse_velocities,
 };
 use softcbf::control::SafetyMode;
 use softcbf::exit;
-use softcbf::hardware::cli::output_directory;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
+use softcbf::output::output_directory;
 use softcbf::output::{Console, Progress, one_line, write_outputs};
+use softcbf::robot_file::load_robot;
 use softcbf::scenario::ScenarioFile;
+use softcbf::settings::check_number;
 use softcbf::sim::{settings_report, simulate};
 use softcbf::verdict::{Limits, Verdict, judge};
 use softcbf::verify::start::StartSet;

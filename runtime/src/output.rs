@@ -1,5 +1,6 @@
 //! What `softcbf simulate` leaves behind and shows: trajectory CSVs, `summary.json`, the
-//! figures, a progress bar on a terminal and the one-line summary.
+//! figures, a progress bar on a terminal and the one-line summary; and the output
+//! directory every command that writes files creates.
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -25,6 +26,19 @@ pub enum OutputError {
     /// The figures could not be drawn.
     #[error(transparent)]
     Plot(#[from] crate::plot::PlotError),
+}
+
+/// Creates `dir` for a run's outputs (any command's `--out`, named `option` in the
+/// error); refuses a path that is a file.
+pub fn output_directory(dir: &Path, option: &str) -> Result<(), String> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!(
+            "{option}: {} is a file, not a directory; give a directory for the outputs",
+            dir.display()
+        ));
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| format!("{option}: cannot create {}: {e}", dir.display()))
 }
 
 fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {

@@ -408,7 +408,7 @@ impl<'m> Plant<'m> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cli::load_robot;
+    use crate::robot_file::load_robot;
 
     /// The plant takes an evaluation only of its own model object at its exact state, and
     /// then advances as it would have with its own evaluation (to rounding).

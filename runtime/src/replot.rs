@@ -105,7 +105,7 @@ pub fn plot(args: PlotArgs, console: &mut Console) -> Result<u8, String> {
     let split = parse_split(&args.split)?;
     let model = match &args.robot {
         Some(path) => {
-            let robot = crate::cli::load_robot(Some(path)).map_err(|e| e.to_string())?;
+            let robot = crate::robot_file::load_robot(Some(path)).map_err(|e| e.to_string())?;
             Some(Model::new(robot).map_err(|e| e.to_string())?)
         }
         None => robot_of_run(&args.files),
@@ -140,9 +140,9 @@ fn robot_of_run(files: &[PathBuf]) -> Option<Model> {
     let facts = facts_for(files.first()?).ok()?;
     let file = facts.robot_file?;
     let robot = if file.starts_with("<embedded") {
-        crate::cli::load_robot(None)
+        crate::robot_file::load_robot(None)
     } else {
-        crate::cli::load_robot(Some(Path::new(&file)))
+        crate::robot_file::load_robot(Some(Path::new(&file)))
     };
     match robot
         .map_err(|e| e.to_string())

@@ -21,7 +21,7 @@ use toml::Spanned;
 use crate::control::{ControllerSettings, SafetyMode};
 use crate::integrator::Tolerances;
 use crate::model::Model;
-use crate::qp::QpSettings;
+use crate::noise::SensorNoise;
 use crate::reference::ReferenceSpec;
 use crate::settings::{GainOptions, Gains, ScenarioGains, Source, Sourced, first, resolve_gains};
 
@@ -61,25 +61,13 @@ pub struct Scenario {
     /// its numbers may differ (model mismatch).
     pub plant: Option<Robot>,
     /// Noise on the state the controller samples (`None`: it samples the plant's state
-    /// exactly): the file's `[sensor_noise]`, or set by `softcbf verify` per run.
+    /// exactly), independent per coordinate and tick: `position` on `q` \[m\], `velocity`
+    /// on `q̇` \[m/s\]. The file's `[sensor_noise]`, or set by `softcbf verify` per run.
     pub sensor_noise: Option<SensorNoise>,
     /// The scenario file (`<embedded …>` for the built-in one).
     pub file: String,
     /// Where the layered settings came from.
     pub sources: Sources,
-}
-
-/// Gaussian noise added to every sample of the state the controller is given: independent
-/// per coordinate and tick, drawn from one seeded generator (the same seed gives the same
-/// noise).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SensorNoise {
-    /// Standard deviation on `q` \[m\].
-    pub q: f64,
-    /// Standard deviation on `q̇` \[m/s\].
-    pub qd: f64,
-    /// Seed of the draws.
-    pub seed: u64,
 }
 
 /// Where a scenario's layered settings came from ([`crate::settings`]): the command line,
@@ -154,7 +142,7 @@ pub struct ScenarioFile {
 }
 
 /// An array of numbers, each with its span.
-type RawVector = Spanned<Vec<Spanned<f64>>>;
+pub(crate) type RawVector = Spanned<Vec<Spanned<f64>>>;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -181,7 +169,7 @@ struct RawScenario {
     #[serde(default)]
     integrator: RawIntegrator,
     /// `softcbf verify`'s ranges, read by [`crate::verify::spec`].
-    verify: Option<crate::verify::spec::RawVerify>,
+    verify: Option<RawVerify>,
 }
 
 /// One module's `[[plant_factors]]`.
@@ -244,12 +232,33 @@ struct RawIntegrator {
     max_steps: Option<Spanned<i64>>,
 }
 
+/// `[verify]` as serde reads it: kept by the scenario file, checked by
+/// [`crate::verify::spec`].
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawVerify {
+    pub(crate) runs: Option<Spanned<i64>>,
+    pub(crate) seed: Option<Spanned<i64>>,
+    pub(crate) duration: Option<Spanned<f64>>,
+    pub(crate) record_period: Option<Spanned<f64>>,
+    pub(crate) threshold: Option<Spanned<f64>>,
+    pub(crate) safety: Option<Spanned<Vec<Spanned<String>>>>,
+    pub(crate) control_periods: Option<RawVector>,
+    pub(crate) set_point_min: Option<RawVector>,
+    pub(crate) set_point_max: Option<RawVector>,
+    pub(crate) initial_q_min: Option<RawVector>,
+    pub(crate) initial_q_max: Option<RawVector>,
+    pub(crate) initial_qd_min: Option<RawVector>,
+    pub(crate) initial_qd_max: Option<RawVector>,
+    pub(crate) parameter_errors: Option<Spanned<bool>>,
+    pub(crate) sensor_noise_q: Option<Spanned<f64>>,
+    pub(crate) sensor_noise_qd: Option<Spanned<f64>>,
+}
+
 /// Default control period \[s\] (the paper's simulation ticks at 1 kHz).
 pub const DEFAULT_CONTROL_PERIOD: f64 = 1e-3;
 /// Default duration \[s\].
 pub const DEFAULT_DURATION: f64 = 10.0;
-/// The paper's gains: `K_P = 5·I` \[N/m\], `K_D = 1·I` \[N·s/m\].
-pub const PAPER_GAINS: (f64, f64) = (5.0, 1.0);
 /// Most ticks a scenario may ask for (a guard against typos such as `duration = 1e9`).
 pub const MAX_TICKS: f64 = 1e8;
 /// Most rows a run may record, ticks and rows between them (the record is held in memory).
@@ -330,7 +339,7 @@ impl ScenarioFile {
     }
 
     /// The `[verify]` table, if the file has one.
-    pub(crate) fn verify_table(&self) -> Option<&crate::verify::spec::RawVerify> {
+    pub(crate) fn verify_table(&self) -> Option<&RawVerify> {
         self.raw.verify.as_ref()
     }
 
@@ -363,7 +372,7 @@ impl ScenarioFile {
         let (Some(given), Some(path)) = (&self.raw.robot, self.robot_path()) else {
             return Ok(None);
         };
-        match crate::cli::load_robot(Some(&path)) {
+        match crate::robot_file::load_robot(Some(&path)) {
             Err(FileError::Io { source, .. }) => {
                 let c = Checker {
                     text: &self.text,
@@ -470,13 +479,13 @@ impl ScenarioFile {
         // (the run's may be another one, given on the command line).
         let replaced = overrides.set_point.is_some() && self.raw.reference.is_some()
             || overrides.plant.is_some() && self.plant_path().is_some();
-        let file_robot = match replaced {
-            true => Some(
-                self.load_robot()
-                    .and_then(|robot| robot.map_or_else(|| crate::cli::load_robot(None), Ok))?,
-            ),
-            false => None,
-        };
+        let file_robot =
+            match replaced {
+                true => Some(self.load_robot().and_then(|robot| {
+                    robot.map_or_else(|| crate::robot_file::load_robot(None), Ok)
+                })?),
+                false => None,
+            };
         let own = file_robot.as_ref().unwrap_or(&model.robot);
         if overrides.plant.is_some() && self.plant_path().is_some() {
             self.plant(&c, own, &Overrides::default())?;
@@ -583,18 +592,12 @@ impl ScenarioFile {
             ],
             false,
         );
-        let mut controller = ControllerSettings {
-            kp: Vec::new(),
-            kd: Vec::new(),
-            barrier_gains: [0.0; 2],
+        let controller = ControllerSettings {
             filter: filter.value,
             safety: safety.value,
             hold: period,
-            sampled: Default::default(),
-            input_limits: (Vec::new(), Vec::new()),
-            qp: QpSettings::default(),
+            ..gains.controller_settings()
         };
-        gains.apply(&mut controller);
         Ok(Scenario {
             name,
             file: self.path.display().to_string(),
@@ -691,7 +694,7 @@ impl ScenarioFile {
             }
         };
         let resolved = std::path::absolute(&path).unwrap_or_else(|_| path.clone());
-        let robot = match crate::cli::load_robot(Some(&path)) {
+        let robot = match crate::robot_file::load_robot(Some(&path)) {
             Ok(robot) => robot,
             Err(FileError::Io { source: error, .. }) => {
                 let taken = match source {
@@ -786,15 +789,17 @@ impl ScenarioFile {
                 .transpose()
                 .map(|v| v.unwrap_or(0.0))
         };
-        let q = number(&t.q, "q", &crate::verify::spec::SENSOR_NOISE_M)?;
-        let qd = number(&t.qd, "qd", &crate::verify::spec::SENSOR_NOISE_M_PER_S)?;
+        let q = number(&t.q, "q", &crate::noise::SENSOR_NOISE_M)?;
+        let qd = number(&t.qd, "qd", &crate::noise::SENSOR_NOISE_M_PER_S)?;
         let seed = match &t.seed {
-            Some(seed) => {
-                c.integer_within(seed, "sensor_noise.seed", &crate::verify::spec::SEED)? as u64
-            }
+            Some(seed) => c.integer_within(seed, "sensor_noise.seed", &crate::noise::SEED)? as u64,
             None => 0,
         };
-        Ok(Some(SensorNoise { q, qd, seed }))
+        Ok(Some(SensorNoise {
+            position: q,
+            velocity: qd,
+            seed,
+        }))
     }
 
     /// The file's `safety` (or its old spelling `hold_correction = true | false`), if given.
@@ -1118,6 +1123,45 @@ mod tests {
             (paper.duration, paper.control_period, &paper.reference)
         );
         assert!(default.compare && paper.compare);
+    }
+
+    #[test]
+    fn the_paper_scenario_builds_the_paper_controller_with_its_period_and_rows() {
+        // One way to build controller settings: a scenario's are the paper's (the built-in
+        // gains, K_P = 5·I and K_D = 1·I) with the scenario's hold, rows and filter.
+        let model = model();
+        let scenario = ScenarioFile::paper_sim().resolve(&model).unwrap();
+        let nq = model.nq();
+        let identity = |k: f64| {
+            (0..nq * nq)
+                .map(|i| if i % (nq + 1) == 0 { k } else { 0.0 })
+                .collect::<Vec<_>>()
+        };
+        let expected = ControllerSettings {
+            kp: identity(5.0),
+            kd: identity(1.0),
+            hold: 1e-3,
+            safety: SafetyMode::Paper,
+            ..ControllerSettings::paper(&model)
+        };
+        assert_eq!(scenario.controller, expected);
+    }
+
+    #[test]
+    fn sensor_noise_of_a_scenario_is_the_one_sensor_noise() {
+        let scenario = resolve("[sensor_noise]\nq = 1e-4\nqd = 2e-3\nseed = 5\n").unwrap();
+        let noise = SensorNoise {
+            position: 1e-4,
+            velocity: 2e-3,
+            seed: 5,
+        };
+        assert_eq!(scenario.sensor_noise, Some(noise));
+        // The emulator's readings take the same type.
+        let settings = crate::hardware::emulator::EmulatorSettings {
+            noise,
+            ..crate::hardware::emulator::EmulatorSettings::new(1_000_000)
+        };
+        assert!(settings.noise.is_on());
     }
 
     #[test]

@@ -19,13 +19,21 @@ use std::fmt;
 use std::path::Path;
 
 use serde::Serialize;
-use softcbf_description::gains::{GainForm, scaled_identity, written_form};
-use softcbf_description::limits;
-use softcbf_description::robot::{DEFAULT_BARRIER_GAINS, Robot};
+use softcbf_description::gains::{
+    DEFAULT_BARRIER_GAINS, GainForm, PAPER_GAINS, scaled_identity, written_form,
+};
+use softcbf_description::limits::{self, Limit};
+use softcbf_description::robot::Robot;
 
-use crate::cli::check_number;
 use crate::control::{ControllerSettings, SafetyMode};
-use crate::scenario::PAPER_GAINS;
+
+/// Checks a number given for option `name` against its [`Limit`] (the same rule as the
+/// description files): `--rate: must be ≥ 1 and ≤ 10000 Hz, got -33`.
+pub fn check_number(name: &str, value: f64, limit: &Limit) -> Result<f64, String> {
+    limit
+        .check(value)
+        .map_err(|message| format!("{name}: {message}"))
+}
 
 /// Where a setting's value came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -208,11 +216,14 @@ pub fn resolve_gains(command_line: &GainOptions, scenario: &ScenarioGains, robot
 }
 
 impl Gains {
-    /// Writes the gains into `settings`.
-    pub fn apply(&self, settings: &mut ControllerSettings) {
-        settings.kp.clone_from(&self.kp.value);
-        settings.kd.clone_from(&self.kd.value);
-        settings.barrier_gains = [self.p1.value, self.p2.value];
+    /// Controller settings with these gains, every other field at its default
+    /// ([`ControllerSettings::new`]); a run sets its filter, safety mode and hold over them.
+    pub fn controller_settings(&self) -> ControllerSettings {
+        ControllerSettings::new(
+            self.kp.value.clone(),
+            self.kd.value.clone(),
+            [self.p1.value, self.p2.value],
+        )
     }
 
     /// The gains as `summary.json` records them (`K_P`, `K_D` in their shortest form).
@@ -430,6 +441,32 @@ mod tests {
     fn robot(text: &str) -> Robot {
         let base = "[[module]]\n[[module]]\n";
         Robot::parse(&format!("{text}\n{base}"), "r.toml".as_ref()).unwrap()
+    }
+
+    #[test]
+    fn the_built_in_gains_are_the_papers_and_build_the_paper_controller() {
+        // The paper's simulation gains: K_P = 5·I, K_D = 1·I; p1 = p2 = 10 by default.
+        let robot = robot("");
+        let gains = resolve_gains(&GainOptions::default(), &ScenarioGains::default(), &robot);
+        let nq = 6;
+        let identity = |k: f64| {
+            (0..nq * nq)
+                .map(|i| if i % (nq + 1) == 0 { k } else { 0.0 })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(gains.kp, Sourced::new(identity(5.0), Source::BuiltIn));
+        assert_eq!(gains.kd, Sourced::new(identity(1.0), Source::BuiltIn));
+        assert_eq!(
+            (gains.p1.value, gains.p2.value),
+            (10.0, 10.0),
+            "the robot's default barrier gains"
+        );
+        // The paper's robot (two modules, as `robot("")`) writes the same gains.
+        let model = crate::model::Model::new(crate::robot_file::load_robot(None).unwrap()).unwrap();
+        assert_eq!(
+            gains.controller_settings(),
+            ControllerSettings::paper(&model)
+        );
     }
 
     #[test]

@@ -24,9 +24,9 @@ use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
 
 use crate::control::{self, Controller, ControllerError, TickStatus};
-use crate::hardware::emulator::servos::standard_normal;
 use crate::integrator::IntegratorError;
 use crate::model::{Model, ModelError};
+use crate::noise::standard_normal;
 use crate::plant::Plant;
 use crate::record::{Columns, Record, RecordError, Row};
 use crate::reference::ReferenceSignal;
@@ -430,8 +430,8 @@ pub fn settings_report(model: &Model, scenario: &Scenario, filter: bool) -> Sett
             )
         }),
         sensor_noise: scenario.sensor_noise.map(|n| crate::settings::NoiseReport {
-            q: n.q,
-            qd: n.qd,
+            q: n.position,
+            qd: n.velocity,
             seed: n.seed,
         }),
     }
@@ -551,10 +551,10 @@ pub fn simulate(
         let (sampled_q, sampled_qd) = match &mut noise {
             Some((spread, draws, q, qd, _)) => {
                 for (sample, &x) in q.iter_mut().zip(plant.q()) {
-                    *sample = x + spread.q * standard_normal(draws);
+                    *sample = x + spread.position * standard_normal(draws);
                 }
                 for (sample, &x) in qd.iter_mut().zip(plant.qd()) {
-                    *sample = x + spread.qd * standard_normal(draws);
+                    *sample = x + spread.velocity * standard_normal(draws);
                 }
                 (&q[..], &qd[..])
             }

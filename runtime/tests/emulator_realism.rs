@@ -17,12 +17,11 @@ use clap::Parser;
 use serialport::{SerialPort, TTYPort};
 use softcbf::hardware::cli::{EmulateArgs, emulator_settings, plant_robot};
 use softcbf::hardware::control_table as table;
-use softcbf::hardware::description;
 use softcbf::hardware::emulator::device::Device;
-use softcbf::hardware::emulator::{
-    self, EmulatorError, EmulatorSettings, Preset, SensorNoise, StateReply,
-};
+use softcbf::hardware::emulator::{self, EmulatorError, EmulatorSettings, Preset, StateReply};
+use softcbf::hardware_description as description;
 use softcbf::integrator::Tolerances;
+use softcbf::noise::SensorNoise;
 use softcbf::plant::Plant;
 use softcbf::protocol::{Bus, encode_ping, encode_sync_read, encode_write};
 use softcbf_description::robot::Robot;

@@ -14,7 +14,7 @@ use common::{
     BIN, Emulator, LOAD_FAULTS, finish_run_within, robot, start_run, temp_dir,
     unsafe_only_by_relaxed_ticks,
 };
-use softcbf::hardware::description;
+use softcbf::hardware_description as description;
 use softcbf_description::robot::Robot;
 
 fn true_robot() -> PathBuf {

@@ -10,6 +10,7 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{BIN, lines_of, temp_dir, wait_for};
+use softcbf::verify::report::{read_report, report_json};
 
 fn softcbf(args: &[&str]) -> Output {
     Command::new(BIN).args(args).output().unwrap()
@@ -234,18 +235,24 @@ fn shards_merged_and_thread_counts_give_the_same_files() {
     let replay = dir.join("replay");
     replayed(scenario, &runs, 5, &replay);
     assert!(replay.join("figure.png").exists() && replay.join("robot.png").exists());
-    // The report names that command for its worst runs.
-    let report: serde_json::Value =
-        serde_json::from_slice(&read(&one.join("report.json"))).unwrap();
-    let worst = report["worst"].as_array().unwrap();
+    // The report, read back through the type that wrote it, writes the same bytes again;
+    // it names that command for its worst runs.
+    let report = read_report(&one.join("report.json")).unwrap();
+    assert_eq!(
+        report_json(&report),
+        text(&read(&one.join("report.json"))),
+        "report.json read back and written again"
+    );
+    assert_eq!((report.runs, report.groups.len()), (22, 4));
+    let worst = &report.worst;
     assert!(!worst.is_empty());
-    let command = worst[0]["replay"].as_str().unwrap();
+    let command = &worst[0].replay;
     assert!(
         command.starts_with("softcbf verify replay --scenario "),
         "{command}"
     );
     assert!(
-        command.contains(&format!("--run {}", worst[0]["run"])),
+        command.contains(&format!("--run {}", worst[0].run)),
         "{command}"
     );
 }

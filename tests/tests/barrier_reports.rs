@@ -337,7 +337,7 @@ fn model_json_describes_every_barrier_with_the_robots_numbers() {
 /// `θ ≤ 1.25π` with `L0 = 0.1 m`, marked `domain_default`; no obstacles.
 #[test]
 fn model_json_of_the_paper_robot_lists_its_corners_and_domain_limits() {
-    let model = Model::new(softcbf::cli::load_robot(None).expect("embedded robot")).unwrap();
+    let model = Model::new(softcbf::robot_file::load_robot(None).expect("embedded robot")).unwrap();
     let report = model_report(&model, &[0.0; 6], &[0.0; 6]).unwrap();
     let info = report["barrier_info"].as_array().expect("a list");
     assert_eq!(info.len(), model.generated.barrier_table().len());
@@ -545,7 +545,7 @@ fn summary_has_the_lowest_barrier_of_each_kind() {
 /// domain's limits every module has are reported per kind beside it, far from zero.
 #[test]
 fn paper_summary_reports_the_corners_and_the_domain_limits() {
-    let model = Model::new(softcbf::cli::load_robot(None).expect("embedded robot")).unwrap();
+    let model = Model::new(softcbf::robot_file::load_robot(None).expect("embedded robot")).unwrap();
     let run = short_run(&model, 0.2);
     let summary = &run.summary;
     assert_eq!(summary.lowest_by_kind.len(), 3);

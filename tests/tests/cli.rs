@@ -11,12 +11,13 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use softcbf::cli::{
-    check_number, load_robot, parse_coordinates, parse_integer, parse_number, parse_vector,
-    parse_velocities,
+    parse_coordinates, parse_integer, parse_number, parse_vector, parse_velocities,
 };
-use softcbf::hardware::limits as servo;
+use softcbf::hardware_description::limits as servo;
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
+use softcbf::robot_file::load_robot;
+use softcbf::settings::check_number;
 use softcbf_description::limits;
 use softcbf_tests::reference::{self, Jet};
 

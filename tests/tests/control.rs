@@ -3,13 +3,13 @@
 //! fallbacks for non-finite states and infeasible rows.
 
 use rand::RngExt;
-use softcbf::cli::load_robot;
 use softcbf::control::{
     Controller, ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus, tick,
 };
 use softcbf::dynamics::{DynamicsWorkspace, forward_dynamics};
 use softcbf::model::Model;
 use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
+use softcbf::robot_file::load_robot;
 use softcbf_tests::TestRng;
 use softcbf_tests::alloc::{CountingAlloc, allocations};
 use softcbf_tests::reference::stiffness_and_damping;

@@ -5,10 +5,10 @@
 
 use std::path::{Path, PathBuf};
 
-use softcbf::cli::load_robot;
 use softcbf::model::Model;
 use softcbf::plot::FigureOptions;
 use softcbf::record::Record;
+use softcbf::robot_file::load_robot;
 use softcbf::scenario::{Scenario, ScenarioFile, between_ticks};
 use softcbf::sim::{Run, simulate};
 

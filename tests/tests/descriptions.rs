@@ -12,7 +12,7 @@ use softcbf::control::{
     Controller, ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus,
     scaled_identity, tick,
 };
-use softcbf::hardware::description::{self, Hardware};
+use softcbf::hardware_description::{self as description, Hardware};
 use softcbf::inspect::model_report;
 use softcbf::model::Model;
 use softcbf::reference::{ReferenceSignal, ReferenceSpec};

@@ -13,13 +13,13 @@ use std::time::Duration;
 
 use serialport::{SerialPort, TTYPort};
 use softcbf::control::SafetyMode;
-use softcbf::hardware::description::{self, Hardware, VelocitySource};
 use softcbf::hardware::emulator::{self, EmulatorLog, EmulatorSettings, Faults};
 use softcbf::hardware::log::{CsvLog, FIXED_EXTRA};
 use softcbf::hardware::mapping::TendonMap;
 use softcbf::hardware::run_loop::{
     self, RateRule, Row, RunLog, RunSettings, RunSummary, StopReason,
 };
+use softcbf::hardware_description::{self as description, Hardware, VelocitySource};
 use softcbf::model::Model;
 use softcbf::protocol::Bus;
 use softcbf::record::Record;

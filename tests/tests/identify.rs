@@ -8,15 +8,15 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use rand::RngExt;
-use softcbf::hardware::description::Hardware;
-use softcbf::hardware::emulator::SensorNoise;
 use softcbf::hardware::log_description::LogDescription;
+use softcbf::hardware_description::Hardware;
 use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, Tick, write_log};
 use softcbf::identify::{
     ExperimentKind, Identification, IdentifyArgs, Options, Parameter, Status, hardware_of,
     identify, logs::Expected, output, read_logs,
 };
 use softcbf::model::Model;
+use softcbf::noise::SensorNoise;
 use softcbf::output::Console;
 use softcbf_description::robot::Robot;
 use softcbf_tests::robots;

@@ -5,8 +5,8 @@
 use std::collections::HashMap;
 
 use rand::RngExt;
-use softcbf::cli::load_robot;
 use softcbf::model::{Model, ModelError};
+use softcbf::robot_file::load_robot;
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::simulate;
 use softcbf_codegen::analytic::{MAX_ORDER, SWITCH_POINTS};

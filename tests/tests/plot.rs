@@ -698,8 +698,8 @@ fn a_hardware_log_with_gaps_is_drawn() {
 /// `trajectory.csv`, `trajectory_pd.csv`, `summary.json`, `figure.png`, `figure.svg`, the
 /// 3-D view `robot.png`, `robot.svg`.
 fn simulate_into(dir: &Path, seconds: f64) {
-    use softcbf::cli::load_robot;
     use softcbf::model::Model;
+    use softcbf::robot_file::load_robot;
     use softcbf::scenario::ScenarioFile;
     use softcbf::sim::simulate;
     let model = Model::new(load_robot(None).unwrap()).unwrap();
@@ -825,9 +825,9 @@ fn figures_are_redrawn_from_the_files() {
 /// when one is given.
 #[test]
 fn old_logs_are_redrawn_with_the_robots_labels() {
-    use softcbf::cli::load_robot;
     use softcbf::model::Model;
     use softcbf::replot::replot;
+    use softcbf::robot_file::load_robot;
     let dir = out_dir("replot-old");
     std::fs::create_dir_all(&dir).unwrap();
     let run = synthetic_run(true);

@@ -6,9 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use rand::RngExt;
-use softcbf::cli::load_robot;
 use softcbf::model::Model;
 use softcbf::record::{Columns, CsvWriter, Record, RecordError, Row};
+use softcbf::robot_file::load_robot;
 
 use softcbf_tests::TestRng;
 use softcbf_tests::alloc::{CountingAlloc, allocations};

@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use softcbf::cli::load_robot;
 use softcbf::control::SafetyMode;
 use softcbf::model::Model;
 use softcbf::reference::ReferenceSpec;
+use softcbf::robot_file::load_robot;
 use softcbf::scenario::{Scenario, ScenarioFile};
 use softcbf::settings::Source;
 use softcbf::sim::{Run, simulate};

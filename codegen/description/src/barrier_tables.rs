@@ -179,8 +179,8 @@ impl Checker<'_> {
                 format!(
                     "the model's domain allows {} ≤ δL_min < δL_max ≤ {} m for L0 = {l0} m \
                      (docs/model.md §3)",
-                    crate::domain::rounded(lowest),
-                    crate::domain::rounded(highest)
+                    crate::limits::rounded(lowest),
+                    crate::limits::rounded(highest)
                 )
             };
             if let Some(e) = elongation {
@@ -193,9 +193,9 @@ impl Checker<'_> {
                             "module {}: δL_min = {min} m leaves a backbone length L0 + δL_min = \
                              {} m, shorter than {} L0 = {} m; {}",
                             i + 1,
-                            crate::domain::rounded(l0 + min),
+                            crate::limits::rounded(l0 + min),
                             limits::DEFAULT_MIN_LENGTH_FRACTION,
-                            crate::domain::rounded(limits::DEFAULT_MIN_LENGTH_FRACTION * l0),
+                            crate::limits::rounded(limits::DEFAULT_MIN_LENGTH_FRACTION * l0),
                             allowed()
                         ),
                     ));
@@ -230,8 +230,8 @@ impl Checker<'_> {
                         "module {}: the margin {margin} m leaves no allowed elongation inside \
                          [{}, {}] m (it needs δL_min + ε < δL_max − ε)",
                         i + 1,
-                        crate::domain::rounded(min),
-                        crate::domain::rounded(max)
+                        crate::limits::rounded(min),
+                        crate::limits::rounded(max)
                     ),
                 ));
             }

@@ -205,6 +205,14 @@ fn indefinite(matrix: &[f64], n: usize) -> Option<String> {
     })
 }
 
+/// The built-in `K_P`, `K_D` of a run whose command line, scenario and robot file give
+/// none: the paper's simulation gains, `K_P = 5·I` [N/m] and `K_D = 1·I` [N·s/m].
+pub const PAPER_GAINS: (f64, f64) = (5.0, 1.0);
+
+/// Default HOCBF gains `p1`, `p2` when the robot file gives none [1/s] (§5 of the model
+/// notes).
+pub const DEFAULT_BARRIER_GAINS: [f64; 2] = [10.0, 10.0];
+
 /// `k·I` as an `n × n` row-major matrix.
 pub fn scaled_identity(n: usize, k: f64) -> Vec<f64> {
     let mut matrix = vec![0.0; n * n];

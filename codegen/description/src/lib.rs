@@ -24,8 +24,10 @@ pub mod gains;
 pub mod layout;
 pub mod limits;
 pub mod module;
+mod module_domain;
 pub mod robot;
 pub mod toml_file;
 pub mod uncertainty;
+mod uncertainty_box;
 
 pub use robot::{Robot, RobotError, Structure};

@@ -132,6 +132,13 @@ pub fn short(x: f64) -> String {
     }
 }
 
+/// `x` to nine significant digits, in the shortest form (`-0.05`, not
+/// `-0.04999999999999999`): for lengths computed from written ones.
+pub(crate) fn rounded(x: f64) -> String {
+    let nine: f64 = format!("{x:.8e}").parse().unwrap_or(x);
+    short(nine)
+}
+
 // ---------------------------------------------------------------------------------------
 // The robot file: modules, gravity, barrier gains.
 
@@ -284,7 +291,7 @@ pub const MAX_STEPS: Limit = Limit::integer(1, 10_000_000);
 
 // ---------------------------------------------------------------------------------------
 // The hardware loop (`softcbf run`); the servo and bus settings are the runtime's
-// (`softcbf::hardware::limits`).
+// (`softcbf::hardware_description::limits`).
 
 /// Loop rate \[Hz\]: below 1 Hz a soft robot moves a barrier's width between ticks; above
 /// 10 kHz no servo bus answers (6 servos at 4.5 Mbit/s: ≈ 2 kHz).

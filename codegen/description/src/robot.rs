@@ -19,13 +19,13 @@ use toml::Spanned;
 
 use crate::barrier_tables::{LimitsTable, ObstacleTable};
 use crate::barriers::{Limits, Obstacle, ObstacleStructure};
-use crate::gains::RawGain;
+use crate::gains::{DEFAULT_BARRIER_GAINS, RawGain};
 use crate::limits;
 pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
 use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
-use crate::uncertainty::{Uncertainty, UncertaintyTable};
+use crate::uncertainty_box::{Uncertainty, UncertaintyTable};
 
 /// How tendons are routed (§6 of the model notes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
@@ -69,7 +69,7 @@ pub struct Robot {
     /// the command line nor the scenario gives a reference.
     pub set_point: Option<Vec<f64>>,
     /// The `[hardware]` table as written, if the file has one; the runtime's hardware path
-    /// reads and checks it (`softcbf::hardware::description`).
+    /// reads and checks it (`softcbf::hardware_description`).
     pub hardware: Option<HardwareTable>,
 }
 
@@ -121,8 +121,6 @@ pub struct Structure {
 
 /// Default gravity when the file gives none [m/s²].
 pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
-/// Default HOCBF gains `p1`, `p2` when the file gives none [1/s] (§5 of the model notes).
-pub const DEFAULT_BARRIER_GAINS: [f64; 2] = [10.0, 10.0];
 pub use crate::limits::MAX_MODULES;
 /// Text of `robots/paper-sim.toml`, compiled in.
 pub const PAPER_SIM_TOML: &str = include_str!("../../../robots/paper-sim.toml");
@@ -369,7 +367,7 @@ impl Checker<'_> {
                         ),
                     ));
                 }
-                let problem = crate::domain::modules_coordinates_problem(&modules, &values);
+                let problem = crate::module_domain::modules_coordinates_problem(&modules, &values);
                 self.state(problem, v, "set_point")?;
                 Some(values)
             }

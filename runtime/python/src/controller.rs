@@ -9,9 +9,9 @@ use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
-use softcbf::cli::check_number;
 use softcbf::control::{ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus, tick};
 use softcbf::model::Model;
+use softcbf::settings::check_number;
 use softcbf::settings::{GainOptions, ScenarioGains, resolve_gains};
 use softcbf_description::limits;
 
@@ -82,17 +82,18 @@ impl Controller {
             Some(name) => {
                 SafetyMode::parse(name).map_err(|e| value_error(format!("safety: {e}")))?
             }
-            None => softcbf::hardware::description::load(&model.robot)
+            None => softcbf::hardware_description::load(&model.robot)
                 .ok()
                 .flatten()
                 .and_then(|hardware| hardware.safety)
                 .unwrap_or_default(),
         };
-        let mut settings = ControllerSettings::paper(&model);
-        resolve_gains(&gains, &ScenarioGains::default(), &model.robot).apply(&mut settings);
-        settings.filter = filter;
-        settings.safety = safety;
-        settings.hold = period;
+        let settings = ControllerSettings {
+            filter,
+            safety,
+            hold: period,
+            ..resolve_gains(&gains, &ScenarioGains::default(), &model.robot).controller_settings()
+        };
         let controller = softcbf::control::Controller::new(&model, settings)
             .map_err(|e| value_error(e.to_string()))?;
         let zeros = vec![0.0; model.nq()];

@@ -60,7 +60,7 @@ impl Robot {
     /// Reads and checks the robot file at `path` (TOML; format in robots/README.md).
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Robot> {
-        softcbf::cli::load_robot(Some(&path))
+        softcbf::robot_file::load_robot(Some(&path))
             .map(|robot| Robot { robot })
             .map_err(|e| file_error(py, &e))
     }
@@ -68,7 +68,7 @@ impl Robot {
     /// The paper's simulated robot (two modules), embedded in the package.
     #[staticmethod]
     fn paper_sim(py: Python<'_>) -> PyResult<Robot> {
-        softcbf::cli::load_robot(None)
+        softcbf::robot_file::load_robot(None)
             .map(|robot| Robot { robot })
             .map_err(|e| file_error(py, &e))
     }

@@ -10,11 +10,12 @@ use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
-use softcbf::cli::{SimulateOptions, check_simulate_options, load_robot};
+use softcbf::cli::{SimulateOptions, check_simulate_options};
 use softcbf::control::SafetyMode;
 use softcbf::model::Model;
 use softcbf::output::write_outputs;
 use softcbf::record::Record;
+use softcbf::robot_file::load_robot;
 use softcbf::scenario::ScenarioFile;
 use softcbf::sim::{Run, simulate as run_simulation};
 

@@ -27,6 +27,7 @@ pub mod certified;
 pub use certified::Uncertified;
 use certified::{CertifiedWorkspace, certified_filter};
 
+use softcbf_description::gains::PAPER_GAINS;
 use softcbf_description::uncertainty::{self, ModuleFactors};
 
 use crate::dynamics::{
@@ -43,9 +44,9 @@ use crate::qp::{QpReport, QpSettings, QpSetupError, QpStatus, SafetyQp};
 /// What the controller is asked to do: gains and whether the safety filter runs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ControllerSettings {
-    /// `K_P`, row-major `nq × nq` \[N/m\]. Paper: `5·I`.
+    /// `K_P`, row-major `nq × nq` \[N/m\]. Paper: `5·I` ([`PAPER_GAINS`]).
     pub kp: Vec<f64>,
-    /// `K_D`, row-major `nq × nq` \[N·s/m\]. Paper: `1·I`.
+    /// `K_D`, row-major `nq × nq` \[N·s/m\]. Paper: `1·I` ([`PAPER_GAINS`]).
     pub kd: Vec<f64>,
     /// HOCBF class-K gains `[p1, p2]` \[1/s\] of every barrier whose own table gives none
     /// (`Model::own_barrier_gains`). Default: the robot file's `[barrier]` gains.
@@ -70,13 +71,16 @@ pub struct ControllerSettings {
 }
 
 impl ControllerSettings {
-    /// The paper's simulation gains (`K_P = 5·I`, `K_D = 1·I`) with the robot's barrier gains
-    /// and the filter on.
-    pub fn paper(model: &Model) -> ControllerSettings {
+    /// The one constructor of controller settings: the gains `kp`, `kd` (row-major
+    /// `nq × nq`, \[N/m\] and \[N·s/m\]) and `barrier_gains` (`[p1, p2]` \[1/s\]), with
+    /// the filter on, the paper's rows, no hold, the default sampling and QP settings and no
+    /// input limits. A run changes the fields its settings give
+    /// ([`crate::settings::Gains::controller_settings`]).
+    pub fn new(kp: Vec<f64>, kd: Vec<f64>, barrier_gains: [f64; 2]) -> ControllerSettings {
         ControllerSettings {
-            kp: scaled_identity(model.nq(), 5.0),
-            kd: scaled_identity(model.nq(), 1.0),
-            barrier_gains: model.robot.barrier_gains(),
+            kp,
+            kd,
+            barrier_gains,
             filter: true,
             safety: SafetyMode::Paper,
             hold: 0.0,
@@ -84,6 +88,17 @@ impl ControllerSettings {
             input_limits: (Vec::new(), Vec::new()),
             qp: QpSettings::default(),
         }
+    }
+
+    /// The paper's simulation gains ([`PAPER_GAINS`]: `K_P = 5·I`, `K_D = 1·I`) with the
+    /// robot's barrier gains and the filter on.
+    pub fn paper(model: &Model) -> ControllerSettings {
+        let (kp, kd) = PAPER_GAINS;
+        ControllerSettings::new(
+            scaled_identity(model.nq(), kp),
+            scaled_identity(model.nq(), kd),
+            model.robot.barrier_gains(),
+        )
     }
 
     /// Checks sizes and values for a model with `nq` coordinates.

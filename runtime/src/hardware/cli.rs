@@ -1,5 +1,5 @@
 //! The `softcbf emulate` and `softcbf run` subcommands: options (each checked by the same
-//! rule as the robot file's field, [`super::limits`]), ports, the summary and the
+//! rule as the robot file's field, [`crate::hardware_description::limits`]), ports, the summary and the
 //! exit status. The work itself is in [`super::emulator`] and [`super::run_loop`];
 //! `softcbf run --experiment` drives [`super::experiment`].
 
@@ -10,28 +10,28 @@ use clap::Args;
 use softcbf_description::limits::{self, Limit};
 use softcbf_description::robot::Robot;
 
-use crate::cli::{check_number, parse_coordinates, parse_number};
+use crate::cli::{parse_coordinates, parse_number};
 use crate::control::SafetyMode;
 use crate::exit;
 use crate::hardware::bus_check::{self, BusTiming, LatencyTimer, RateChoice, RateRule};
-use crate::hardware::description::{self, Hardware};
 use crate::hardware::emulator::{self, EmulatorSettings, Faults, Preset};
 use crate::hardware::experiment::{
     self as experiment, Experiment, ExperimentKind, ExperimentReport, ExperimentSettings,
 };
-use crate::hardware::limits as servo;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::{
     self, RunError, RunSettings, RunSummary, StartReport, StopReason, Verdict,
 };
 use crate::hardware::signal;
 use crate::hardware::status_line::{ExperimentProgress, StatusLine};
+use crate::hardware_description::limits as servo;
+use crate::hardware_description::{self as description, Hardware};
 use crate::model::Model;
-use crate::output::Console;
+use crate::output::{Console, output_directory};
 use crate::protocol::Bus;
 use crate::settings::{
-    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, file_name,
-    resolve_gains, software, vector_text,
+    Described, GainOptions, ScenarioGains, SettingsReport, Source, Sourced, check_number,
+    file_name, resolve_gains, software, vector_text,
 };
 use crate::sim::BarrierMinimum;
 use crate::verdict::Limits as VerdictLimits;
@@ -599,18 +599,6 @@ pub fn parse_rate(text: &str) -> Result<(f64, RateRule), String> {
         check_number("--rate", rate, &limits::RATE_HZ)?,
         RateRule::Hold,
     ))
-}
-
-/// Creates `dir` for a run's outputs; refuses a path that is a file.
-pub fn output_directory(dir: &Path, option: &str) -> Result<(), String> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(format!(
-            "{option}: {} is a file, not a directory; give a directory for the outputs",
-            dir.display()
-        ));
-    }
-    std::fs::create_dir_all(dir)
-        .map_err(|e| format!("{option}: cannot create {}: {e}", dir.display()))
 }
 
 /// The adapter's latency timer of `port` (Linux only: elsewhere nothing is known).

@@ -1547,7 +1547,7 @@ mod tests {
             "/../robots/hardware-example.toml"
         );
         let robot = Robot::load(std::path::Path::new(path)).unwrap();
-        let hardware = crate::hardware::description::load(&robot).unwrap().unwrap();
+        let hardware = crate::hardware_description::load(&robot).unwrap().unwrap();
         let limits = hardware.modules.iter().map(|m| m.tension_limits).collect();
         (robot, limits)
     }

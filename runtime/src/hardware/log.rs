@@ -5,8 +5,8 @@
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use crate::hardware::description::Hardware;
 use crate::hardware::log_description::LogDescription;
+use crate::hardware_description::Hardware;
 use crate::model::Model;
 use crate::plot::{FigureOptions, write_figures};
 use crate::record::{Columns, CsvWriter, Record, Row, as_strs, coordinate_names};
@@ -51,38 +51,108 @@ pub trait RunLog {
 /// `sampled [us]`, `step`, `rest`, `I …`) existed lack them and read as well (columns are
 /// found by name).
 pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
-    let mut names: Vec<String> = [
-        "fresh",
-        "status",
-        "attempts",
-        "comm_errors",
-        "read [us]",
-        "compute [us]",
-        "write [us]",
-        "late [us]",
-        "overrun",
-        "clamp_low",
-        "clamp_high",
-        "age [us]",
-        "period [us]",
-        "hold [us]",
-        "hold_excess [us]",
-        "gain_scale",
-        "sampled [us]",
-        "step",
-        "rest",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
+    let mut names: Vec<String> = Extra::ALL.iter().map(|c| c.name().to_string()).collect();
     names.extend((0..servos).map(|s| format!("f module {} tendon {} [N]", s / 3 + 1, s % 3 + 1)));
     names.extend(coordinates.iter().map(|c| format!("qpred {c} [m]")));
-    names.extend((0..servos).map(|s| format!("I module {} tendon {} [mA]", s / 3 + 1, s % 3 + 1)));
+    names.extend(current_columns(servos));
     names
 }
 
+/// Names of the goal-current columns of `servos` servos (`I module i tendon k [mA]`).
+pub fn current_columns(servos: usize) -> Vec<String> {
+    (0..servos)
+        .map(|s| format!("I module {} tendon {} [mA]", s / 3 + 1, s % 3 + 1))
+        .collect()
+}
+
+/// The fixed extra columns of a run's log ([`extra_columns`]), in the order they are
+/// written: the one table from which the header, the row (written by position,
+/// [`Extra::at`], in `run_loop`) and the readers (`identify` by [`Extra::name`], the
+/// status line by position) all come.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Extra {
+    Fresh,
+    Status,
+    Attempts,
+    CommErrors,
+    Read,
+    Compute,
+    Write,
+    Late,
+    Overrun,
+    ClampLow,
+    ClampHigh,
+    Age,
+    Period,
+    Hold,
+    HoldExcess,
+    GainScale,
+    Sampled,
+    Step,
+    Rest,
+}
+
+impl Extra {
+    /// Every fixed extra column, in the order of the log.
+    pub const ALL: [Extra; 19] = [
+        Extra::Fresh,
+        Extra::Status,
+        Extra::Attempts,
+        Extra::CommErrors,
+        Extra::Read,
+        Extra::Compute,
+        Extra::Write,
+        Extra::Late,
+        Extra::Overrun,
+        Extra::ClampLow,
+        Extra::ClampHigh,
+        Extra::Age,
+        Extra::Period,
+        Extra::Hold,
+        Extra::HoldExcess,
+        Extra::GainScale,
+        Extra::Sampled,
+        Extra::Step,
+        Extra::Rest,
+    ];
+
+    /// Its position among a row's extra values (and after the `simulate` columns of the
+    /// header).
+    pub const fn at(self) -> usize {
+        self as usize
+    }
+
+    /// Its name in the header, with its unit in brackets where it has one.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Extra::Fresh => "fresh",
+            Extra::Status => "status",
+            Extra::Attempts => "attempts",
+            Extra::CommErrors => "comm_errors",
+            Extra::Read => "read [us]",
+            Extra::Compute => "compute [us]",
+            Extra::Write => "write [us]",
+            Extra::Late => "late [us]",
+            Extra::Overrun => "overrun",
+            Extra::ClampLow => "clamp_low",
+            Extra::ClampHigh => "clamp_high",
+            Extra::Age => "age [us]",
+            Extra::Period => "period [us]",
+            Extra::Hold => "hold [us]",
+            Extra::HoldExcess => "hold_excess [us]",
+            Extra::GainScale => "gain_scale",
+            Extra::Sampled => "sampled [us]",
+            Extra::Step => "step",
+            Extra::Rest => "rest",
+        }
+    }
+}
+
 /// Number of extra columns before the tensions.
-pub const FIXED_EXTRA: usize = 19;
+pub const FIXED_EXTRA: usize = Extra::ALL.len();
+
+// The last column closes the table: a column added after it and not to `ALL` is refused.
+const _: () = assert!(Extra::Rest.at() + 1 == FIXED_EXTRA);
 
 /// The streaming CSV log of a run.
 pub struct CsvLog {
@@ -149,6 +219,27 @@ pub fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_fixed_column_is_written_and_read_where_the_header_names_it() {
+        let names = extra_columns(6, &coordinate_names(6));
+        for (k, column) in Extra::ALL.iter().enumerate() {
+            assert_eq!(
+                column.at(),
+                k,
+                "{column:?} stands at its place in the table"
+            );
+            assert_eq!(names[column.at()], column.name(), "{column:?}");
+        }
+        // The header as the table above lists it: the fixed columns, then tensions,
+        // predicted coordinates and currents.
+        assert_eq!(names[..3], ["fresh", "status", "attempts"]);
+        assert_eq!(names[FIXED_EXTRA - 1], "rest");
+        assert_eq!(names[FIXED_EXTRA], "f module 1 tendon 1 [N]");
+        assert_eq!(names[FIXED_EXTRA + 6], "qpred dx1 [m]");
+        assert_eq!(names[FIXED_EXTRA + 12], "I module 1 tendon 1 [mA]");
+        assert_eq!(names.len(), FIXED_EXTRA + 18);
+    }
 
     /// docs/hardware.md names every column a run log has: each extra column, with the
     /// first and last servo's tension and current and the first coordinate's prediction

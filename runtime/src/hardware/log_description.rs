@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use softcbf_description::robot::Robot;
 
-use super::description::Hardware;
+use crate::hardware_description::Hardware;
 
 /// The file's name in a run directory.
 pub const FILE_NAME: &str = "hardware.json";
@@ -298,7 +298,7 @@ fn same(a: f64, b: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hardware::description;
+    use crate::hardware_description as description;
 
     fn example() -> (Robot, Hardware) {
         let path = Path::new(concat!(

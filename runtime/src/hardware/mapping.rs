@@ -17,7 +17,7 @@ use nalgebra::{Matrix3, Vector3};
 use softcbf_description::robot::Robot;
 use softcbf_description::toml_file::FileError;
 
-use crate::hardware::description::{self, Hardware, ModuleHardware};
+use crate::hardware_description::{self as description, Hardware, ModuleHardware};
 
 /// Why a robot cannot be driven through servos.
 #[derive(Debug, thiserror::Error)]

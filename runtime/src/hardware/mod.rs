@@ -1,8 +1,8 @@
 //! The hardware path: the robot's Dynamixel servos over Protocol 2.0, driven by the same
 //! controller as the simulation, and an emulator of those servos for work without a robot.
 //!
-//! - [`description`]: the robot file's `[hardware]` table, read and checked ([`description::load`]);
-//!   [`limits`]: the range of every servo and bus setting.
+//! - The robot file's `[hardware]` table, read and checked, and the range of every servo
+//!   and bus setting, are a description, below this path: [`crate::hardware_description`].
 //! - [`control_table`]: the X-series registers used.
 //! - [`mapping`]: servo angles → `q`, `q̇`; `τ` → tensions → currents, and back.
 //! - [`emulator`]: `softcbf emulate`, the servos on a pseudo-terminal, moved by the plant.
@@ -21,10 +21,8 @@
 pub mod bus_check;
 pub mod cli;
 pub mod control_table;
-pub mod description;
 pub mod emulator;
 pub mod experiment;
-pub mod limits;
 pub mod log;
 pub mod log_description;
 pub mod mapping;

@@ -42,7 +42,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::hardware::description::VelocitySource;
+use crate::hardware_description::VelocitySource;
 use softcbf_description::domain;
 
 use crate::control::{
@@ -60,10 +60,10 @@ use crate::protocol::{Bus, BusCounters};
 use crate::sim::{BarrierMinimum, LowestByKind};
 
 pub use crate::hardware::bus_check::RateRule;
-use crate::hardware::log::FIXED_EXTRA;
+use crate::hardware::log::{Extra, FIXED_EXTRA};
 pub use crate::hardware::log::{RunLog, extra_columns};
 pub use crate::hardware::run_outcome::{Deadlines, RunSummary, StopReason, Verdict};
-pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RunSettings};
+pub use crate::hardware::run_settings::{DEFAULT_BUS_WATCHDOG_FLOOR, RATE_WINDOW, RunSettings};
 pub use crate::record::Row;
 
 /// Time on the wire \[s\] of the goal-current sync write to `servos` servos at `baud`:
@@ -84,9 +84,6 @@ pub fn prediction_tolerances() -> Tolerances {
         ..Tolerances::default()
     }
 }
-
-/// Commands over which the achieved rate and the hold period are measured.
-pub const RATE_WINDOW: usize = 8;
 
 /// The factor on the longest recent interval that gives the hold a command is computed for:
 /// a 10 % allowance for the loop's jitter.
@@ -238,16 +235,15 @@ pub fn run_reporting<P: ServoPort>(
     let nq = model.nq();
     settings.validate(nq).map_err(RunError::Setting)?;
     let hardware = map.hardware();
-    let mut controller_settings = ControllerSettings::paper(model);
-    settings
-        .gains_for(&model.robot)
-        .apply(&mut controller_settings);
-    controller_settings.filter = settings.filter;
-    // The filter chooses among the commands the cables can realize.
-    controller_settings.input_limits = map.tension_limit_rows();
     let period = 1.0 / settings.rate;
-    controller_settings.safety = hardware.safety.unwrap_or_default();
-    controller_settings.hold = period;
+    let controller_settings = ControllerSettings {
+        filter: settings.filter,
+        // The filter chooses among the commands the cables can realize.
+        input_limits: map.tension_limit_rows(),
+        safety: hardware.safety.unwrap_or_default(),
+        hold: period,
+        ..settings.gains_for(&model.robot).controller_settings()
+    };
     let mut controller = Controller::new(model, controller_settings.clone())?;
     controller.set_compute_budget(COMPUTE_BUDGET * period);
     let n = map.n_servos();
@@ -872,28 +868,29 @@ fn push_row(
     clamps: Clamps,
 ) {
     let us = |d: Duration| d.as_secs_f64() * 1e6;
-    let fixed = [
-        f64::from(u8::from(fresh)),
-        status,
-        f64::from(io.attempts()),
-        f64::from(consecutive),
-        us(timing.read),
-        us(timing.compute),
-        us(timing.write),
-        us(timing.late),
-        f64::from(u8::from(timing.overrun)),
-        f64::from(clamps.low),
-        f64::from(clamps.high),
-        timing.age * 1e6,
-        timing.interval * 1e6,
-        timing.hold * 1e6,
-        timing.hold_excess * 1e6,
-        timing.gain_scale,
-        timing.sampled * 1e6,
-        ws.mark.map_or(f64::NAN, |m| m.step as f64),
-        f64::from(u8::from(fresh && ws.mark.is_some_and(|m| m.rest))),
-    ];
-    ws.extra[..FIXED_EXTRA].copy_from_slice(&fixed);
+    for column in Extra::ALL {
+        ws.extra[column.at()] = match column {
+            Extra::Fresh => f64::from(u8::from(fresh)),
+            Extra::Status => status,
+            Extra::Attempts => f64::from(io.attempts()),
+            Extra::CommErrors => f64::from(consecutive),
+            Extra::Read => us(timing.read),
+            Extra::Compute => us(timing.compute),
+            Extra::Write => us(timing.write),
+            Extra::Late => us(timing.late),
+            Extra::Overrun => f64::from(u8::from(timing.overrun)),
+            Extra::ClampLow => f64::from(clamps.low),
+            Extra::ClampHigh => f64::from(clamps.high),
+            Extra::Age => timing.age * 1e6,
+            Extra::Period => timing.interval * 1e6,
+            Extra::Hold => timing.hold * 1e6,
+            Extra::HoldExcess => timing.hold_excess * 1e6,
+            Extra::GainScale => timing.gain_scale,
+            Extra::Sampled => timing.sampled * 1e6,
+            Extra::Step => ws.mark.map_or(f64::NAN, |m| m.step as f64),
+            Extra::Rest => f64::from(u8::from(fresh && ws.mark.is_some_and(|m| m.rest))),
+        };
+    }
     let (n, nq) = (ws.tensions.len(), ws.q.len());
     let row = if fresh {
         ws.extra[FIXED_EXTRA..FIXED_EXTRA + n].copy_from_slice(&ws.tensions);

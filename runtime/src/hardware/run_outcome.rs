@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use crate::hardware::bus_check::{BusTiming, RateChoice};
 use crate::hardware::experiment::ExperimentReport;
 use crate::hardware::mapping::Clamps;
-use crate::hardware::run_loop::RATE_WINDOW;
+use crate::hardware::run_settings::RATE_WINDOW;
 use crate::protocol::BusCounters;
 use crate::sim::{BarrierMinimum, LowestByKind};
 pub use crate::verdict::Verdict;

@@ -6,8 +6,11 @@ use softcbf_description::limits::{self, Limit};
 
 use crate::hardware::bus_check::RateRule;
 use crate::hardware::experiment::ExperimentSettings;
-use crate::hardware::limits as servo;
+use crate::hardware_description::limits as servo;
 use crate::settings::Gains;
+
+/// Commands over which the achieved rate and the hold period are measured.
+pub const RATE_WINDOW: usize = 8;
 
 /// The shortest Bus Watchdog `softcbf run` arms by default \[s\].
 pub const DEFAULT_BUS_WATCHDOG_FLOOR: f64 = 0.1;
@@ -29,7 +32,7 @@ pub struct RunSettings {
     /// (`--rate auto`).
     pub rate_rule: RateRule,
     /// Lowest rate the loop may fall to, averaged over
-    /// [`RATE_WINDOW`](crate::hardware::run_loop::RATE_WINDOW) commands, before it stops
+    /// [`RATE_WINDOW`] commands, before it stops
     /// \[Hz\]; `None`: half of the rate run at, with [`RateRule::Adapt`] at most
     /// [`AUTO_MIN_RATE`] ([`RunSettings::min_rate`]).
     pub min_rate: Option<f64>,

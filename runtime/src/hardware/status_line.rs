@@ -12,7 +12,7 @@ use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
 use crate::hardware::experiment::ExperimentKind;
-use crate::hardware::log::RunLog;
+use crate::hardware::log::{Extra, RunLog};
 use crate::output::Console;
 use crate::record::Row;
 
@@ -21,15 +21,15 @@ pub const REDRAW: Duration = Duration::from_millis(250);
 
 /// Index of the `status` extra column (−1 no reading, 0 unfiltered, 1 filtered, 2 relaxed,
 /// 3 QP failed, 4 invalid state; [`crate::hardware::log::extra_columns`]).
-const STATUS: usize = 1;
+const STATUS: usize = Extra::Status.at();
 /// Index of the `attempts` extra column (sync reads this tick).
-const ATTEMPTS: usize = 2;
+const ATTEMPTS: usize = Extra::Attempts.at();
 /// Index of the `overrun` extra column (1: a deadline overrun).
-const OVERRUN: usize = 8;
+const OVERRUN: usize = Extra::Overrun.at();
 /// Index of the `step` extra column (an experiment's step; NaN in a plain run).
-const STEP: usize = 17;
+const STEP: usize = Extra::Step.at();
 /// Index of the `rest` extra column (1: a row of a static step's rest state).
-const REST: usize = 18;
+const REST: usize = Extra::Rest.at();
 
 /// What the progress lines know of an experiment.
 #[derive(Clone, Copy, Debug, PartialEq)]

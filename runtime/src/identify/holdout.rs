@@ -2,7 +2,7 @@
 //! the plant from the measured state at its start under the logged currents (held from
 //! each command's landing), with the identified numbers and with the file's.
 
-use crate::hardware::description::Hardware;
+use crate::hardware_description::Hardware;
 use crate::integrator::Tolerances;
 use crate::model::Model;
 

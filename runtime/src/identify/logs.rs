@@ -12,9 +12,10 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
-use crate::hardware::description::Hardware;
+use crate::hardware::log::{Extra, current_columns};
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::run_loop::command_wire_time;
+use crate::hardware_description::Hardware;
 use crate::record::{TIME, coordinate_names};
 
 use super::IdentifyError;
@@ -93,14 +94,14 @@ impl Log {
 /// Columns read from `trajectory.csv`, besides `q` and the goal currents.
 const FIXED: [&str; 9] = [
     TIME,
-    "fresh",
-    "compute [us]",
-    "write [us]",
-    "sampled [us]",
-    "step",
-    "rest",
-    "clamp_low",
-    "clamp_high",
+    Extra::Fresh.name(),
+    Extra::Compute.name(),
+    Extra::Write.name(),
+    Extra::Sampled.name(),
+    Extra::Step.name(),
+    Extra::Rest.name(),
+    Extra::ClampLow.name(),
+    Extra::ClampHigh.name(),
 ];
 const T: usize = 0;
 const FRESH: usize = 1;
@@ -226,13 +227,6 @@ fn read_summary(
         Some("dynamic") => Some(ExperimentKind::Dynamic),
         _ => None,
     })
-}
-
-/// Names of the goal-current columns of `servos` servos.
-pub fn current_columns(servos: usize) -> Vec<String> {
-    (0..servos)
-        .map(|s| format!("I module {} tendon {} [mA]", s / 3 + 1, s % 3 + 1))
-        .collect()
 }
 
 /// Whether `name` is a coordinate column `dx<i> [m]`, `dy<i> [m]` or `dL<i> [m]`.

@@ -56,8 +56,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use clap::Args;
 use softcbf_description::robot::{Robot, RobotError};
 
-use crate::hardware::description::{self, Hardware};
 use crate::hardware::log_description::{DescriptionError, LogDescription};
+use crate::hardware_description::{self as description, Hardware};
 use crate::model::{Model, ModelError};
 use crate::output::Console;
 

@@ -7,7 +7,7 @@ use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
 
 use super::logs::Log;
-use crate::hardware::emulator::servos::standard_normal;
+use crate::noise::standard_normal;
 
 /// The seed of the added noise: the same logs always give the same report.
 pub const SEED: u64 = 0x5eed_0f4e;

@@ -9,7 +9,7 @@
 //! §4); at rest `K q̄ − A diag(ū) g = −G(q̄)`.
 
 use crate::dynamics::{DynamicsWorkspace, bias_and_gravity, mass_matrix, update_joints};
-use crate::hardware::description::Hardware;
+use crate::hardware_description::Hardware;
 use crate::model::Model;
 
 use super::filter::{Kernel, trapezoid_weight};

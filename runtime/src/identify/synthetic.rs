@@ -15,14 +15,14 @@ use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
 
 use crate::dynamics::{BarrierTerms, DynamicsWorkspace, model_terms};
-use crate::hardware::emulator::SensorNoise;
-use crate::hardware::emulator::servos::standard_normal;
 use crate::hardware::log::extra_columns;
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::command_wire_time;
 use crate::integrator::Tolerances;
 use crate::model::Model;
+use crate::noise::SensorNoise;
+use crate::noise::standard_normal;
 use crate::plant::Plant;
 use crate::record::{Columns, CsvWriter, Row, as_strs, coordinate_names};
 

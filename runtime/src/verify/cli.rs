@@ -9,13 +9,15 @@ use std::time::Instant;
 
 use clap::{Args, Subcommand};
 
-use crate::cli::{check_number, load_robot};
 use crate::exit;
-use crate::hardware::cli::output_directory;
 use crate::hardware::signal;
 use crate::model::Model;
+use crate::noise::SEED;
+use crate::output::output_directory;
 use crate::output::{Console, one_line, write_outputs};
+use crate::robot_file::load_robot;
 use crate::scenario::ScenarioFile;
+use crate::settings::check_number;
 use crate::sim::simulate;
 use crate::verdict::{Limits, Verdict, judge};
 use crate::verify::directory::{self, Found};
@@ -23,7 +25,7 @@ use crate::verify::draw::draw;
 use crate::verify::report::is_unsafe;
 use crate::verify::report::{report, report_json};
 use crate::verify::search::cli::{SearchCommand, is_search_shard, search_command};
-use crate::verify::spec::{RUNS, SEED, VerifyOverrides, VerifySpec};
+use crate::verify::spec::{RUNS, VerifyOverrides, VerifySpec};
 use crate::verify::table::{self, Batch, Manifest, read, runs_csv, shard_range, write};
 use crate::verify::{RunRow, figures, run_batch};
 use softcbf_description::limits::Limit;
@@ -182,7 +184,7 @@ fn load_file(
         .and_then(|robot| robot.map_or_else(|| load_robot(None), Ok))
         .map_err(|e| e.to_string())?;
     let robot_text = std::fs::read_to_string(&robot.source)
-        .unwrap_or_else(|_| crate::cli::PAPER_SIM_ROBOT.to_string());
+        .unwrap_or_else(|_| crate::robot_file::PAPER_SIM_ROBOT.to_string());
     let model = Model::new(robot).map_err(|e| e.to_string())?;
     let overrides = VerifyOverrides {
         runs: runs.map(|n| n as usize),
@@ -580,7 +582,7 @@ fn replay_command(args: ReplayArgs, console: &mut Console) -> Result<u8, String>
     let (model, spec) = load(&args.scenario, None, args.seed, args.duration)?;
     output_directory(&args.out, "--out")?;
     let drawn = draw(&model, &spec, args.run)?;
-    let scenario = spec.scenario_for(&model, &drawn)?;
+    let scenario = drawn.scenario(&spec, &model)?;
     let group = &spec.groups[drawn.group];
     console.say(&format!(
         "run {} of seed {} ({}): set point {:?}",

@@ -4,10 +4,13 @@
 
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
-use softcbf_description::uncertainty::ModuleFactors;
+use softcbf_description::uncertainty::{self, ModuleFactors};
 
 use crate::control::SafetyMode;
 use crate::model::Model;
+use crate::noise::SensorNoise;
+use crate::reference::ReferenceSpec;
+use crate::scenario::Scenario;
 use crate::verify::spec::{Bounds, INITIAL_STATE_TRIES, VerifySpec};
 
 /// One run's draws.
@@ -28,6 +31,37 @@ pub struct Draw {
     pub factors: Vec<ModuleFactors>,
     /// Seed of the sensor noise.
     pub noise_seed: u64,
+}
+
+impl Draw {
+    /// The scenario of this run of `spec`: its group's, with the drawn set point, initial state,
+    /// plant numbers and sensor noise.
+    pub fn scenario(&self, spec: &VerifySpec, model: &Model) -> Result<Scenario, String> {
+        let group = spec
+            .groups
+            .get(self.group)
+            .ok_or_else(|| format!("no group {}", self.group))?;
+        let mut scenario = group.scenario.clone();
+        if spec.set_point.is_some() {
+            scenario.reference = ReferenceSpec::SetPoint(self.set_point.clone());
+        }
+        scenario.initial_q.clone_from(&self.initial_q);
+        scenario.initial_qd.clone_from(&self.initial_qd);
+        if spec.parameter_errors {
+            let plant =
+                uncertainty::scaled(&model.robot, &self.factors).map_err(|e| e.to_string())?;
+            scenario.plant = Some(plant);
+        }
+        if spec.sensor_noise.iter().any(|&s| s > 0.0) {
+            scenario.sensor_noise = Some(SensorNoise {
+                position: spec.sensor_noise[0],
+                velocity: spec.sensor_noise[1],
+                seed: self.noise_seed,
+            });
+        }
+        scenario.compare = false;
+        Ok(scenario)
+    }
 }
 
 /// SplitMix64's output function: a bijection of `u64` that mixes every bit into every bit.

@@ -219,8 +219,8 @@ pub fn evaluate(
     draw: Draw,
 ) -> Result<Finished, VerifyError> {
     let start = Instant::now();
-    let scenario = spec
-        .scenario_for(model, &draw)
+    let scenario = draw
+        .scenario(spec, model)
         .map_err(|message| VerifyError::Run { run, message })?;
     let mut set_point_barriers = vec![0.0; model.nb()];
     model

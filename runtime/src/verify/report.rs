@@ -1,30 +1,46 @@
 //! `report.json`: what a batch found, per group and overall (counts of unsafe, stopped,
 //! relaxed and failed runs, quantiles of the lowest barrier and the set-point error) and
-//! its worst runs with the command that replays each. A function of the rows alone.
+//! its worst runs with the command that replays each. A function of the rows alone,
+//! written ([`report_json`]) and read back ([`read_report`]) through [`Report`].
 
-use serde::Serialize;
+use std::path::Path;
+
+use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::verdict::{Limits, judge};
 use crate::verify::RunRow;
-use crate::verify::table::Batch;
+use crate::verify::table::{Batch, TableError, read};
 
 /// Worst runs listed per group.
 pub const WORST_PER_GROUP: usize = 5;
 
 /// Quantiles of one number over runs (nearest rank; `null` in JSON without runs).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Quantiles {
+    #[serde(deserialize_with = "number_or_null")]
     pub min: f64,
+    #[serde(deserialize_with = "number_or_null")]
     pub q01: f64,
+    #[serde(deserialize_with = "number_or_null")]
     pub q05: f64,
+    #[serde(deserialize_with = "number_or_null")]
     pub median: f64,
+    #[serde(deserialize_with = "number_or_null")]
     pub q95: f64,
+    #[serde(deserialize_with = "number_or_null")]
     pub q99: f64,
+    #[serde(deserialize_with = "number_or_null")]
     pub max: f64,
 }
 
+/// A number of `report.json`, where JSON's `null` stands for a number that was not finite
+/// (serde_json writes NaN and ±∞ as `null`): read back as NaN.
+fn number_or_null<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(deserializer)?.unwrap_or(f64::NAN))
+}
+
 /// What the runs of one group (or of all) did.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GroupReport {
     /// `sampled @ 33.3 Hz`, or `all`.
     pub name: String,
@@ -50,24 +66,27 @@ pub struct GroupReport {
 }
 
 /// One of the worst runs of a group.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WorstRun {
     pub run: usize,
     pub seed: u64,
     pub group: String,
     /// Its lowest barrier, which barrier, and when \[s\].
+    #[serde(deserialize_with = "number_or_null")]
     pub lowest_barrier: f64,
     pub barrier: String,
+    #[serde(deserialize_with = "number_or_null")]
     pub t: f64,
     /// Its set point \[m\] and the lowest barrier there.
     pub set_point: Vec<f64>,
+    #[serde(deserialize_with = "number_or_null")]
     pub set_point_barrier: f64,
     /// The command that runs it again alone, with figures and the 3-D view.
     pub replay: String,
 }
 
 /// `report.json`.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
     pub scenario: String,
     pub seed: u64,
@@ -193,4 +212,15 @@ pub fn report_json(report: &Report) -> String {
     let mut text = serde_json::to_string_pretty(report).unwrap_or_default();
     text.push('\n');
     text
+}
+
+/// Reads `report.json` written by [`report_json`] (a number written as `null`, not finite
+/// when written, reads as NaN).
+pub fn read_report(path: &Path) -> Result<Report, TableError> {
+    let text = read(path)?;
+    serde_json::from_str(&text).map_err(|e| TableError::Format {
+        path: path.to_path_buf(),
+        line: e.line(),
+        message: format!("not the report.json of a `softcbf verify` batch: {e}"),
+    })
 }

@@ -2,44 +2,17 @@
 //! and initial states are drawn from, parameter errors, sensor noise, and the safety modes
 //! and control periods compared; read and checked once, errors naming file, line and field.
 
-use serde::Deserialize;
 use softcbf_description::limits::{self, Limit};
-use softcbf_description::uncertainty::{self, ModuleFactors};
+use softcbf_description::uncertainty::ModuleFactors;
 use toml::Spanned;
 
 use crate::control::SafetyMode;
 use crate::model::Model;
-use crate::reference::ReferenceSpec;
+use crate::noise::{SEED, SENSOR_NOISE_M, SENSOR_NOISE_M_PER_S};
 use crate::scenario::{
-    Overrides, Scenario, ScenarioError, ScenarioFile, SensorNoise, state_vector,
+    Overrides, RawVector, RawVerify, Scenario, ScenarioError, ScenarioFile, state_vector,
 };
-use crate::verify::draw::Draw;
 use crate::verify::start::StartSet;
-
-/// An array of numbers, each with its span.
-type RawVector = Spanned<Vec<Spanned<f64>>>;
-
-/// `[verify]` as serde reads it.
-#[derive(Clone, Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(crate) struct RawVerify {
-    runs: Option<Spanned<i64>>,
-    seed: Option<Spanned<i64>>,
-    duration: Option<Spanned<f64>>,
-    record_period: Option<Spanned<f64>>,
-    threshold: Option<Spanned<f64>>,
-    safety: Option<Spanned<Vec<Spanned<String>>>>,
-    control_periods: Option<RawVector>,
-    set_point_min: Option<RawVector>,
-    set_point_max: Option<RawVector>,
-    initial_q_min: Option<RawVector>,
-    initial_q_max: Option<RawVector>,
-    initial_qd_min: Option<RawVector>,
-    initial_qd_max: Option<RawVector>,
-    parameter_errors: Option<Spanned<bool>>,
-    sensor_noise_q: Option<Spanned<f64>>,
-    sensor_noise_qd: Option<Spanned<f64>>,
-}
 
 /// Default number of runs.
 pub const DEFAULT_RUNS: usize = 1000;
@@ -135,12 +108,6 @@ pub struct VerifyOverrides {
 
 /// Number of runs in a batch.
 pub const RUNS: Limit = Limit::integer(1, 100_000_000);
-/// A batch's seed (any non-negative TOML integer).
-pub const SEED: Limit = Limit::integer(0, i64::MAX);
-/// Standard deviation of the sensor noise on `q` \[m\]: up to a centimetre.
-pub const SENSOR_NOISE_M: Limit = Limit::closed(0.0, 0.01, "m");
-/// Standard deviation of the sensor noise on `q̇` \[m/s\].
-pub const SENSOR_NOISE_M_PER_S: Limit = Limit::closed(0.0, 1.0, "m/s");
 
 impl VerifySpec {
     /// Reads and checks `file`'s `[verify]` table for `model` (a file without one verifies
@@ -371,35 +338,6 @@ impl VerifySpec {
             groups,
             start,
         })
-    }
-
-    /// The scenario of one run: its group's, with the drawn set point, initial state,
-    /// plant numbers and sensor noise.
-    pub fn scenario_for(&self, model: &Model, draw: &Draw) -> Result<Scenario, String> {
-        let group = self
-            .groups
-            .get(draw.group)
-            .ok_or_else(|| format!("no group {}", draw.group))?;
-        let mut scenario = group.scenario.clone();
-        if self.set_point.is_some() {
-            scenario.reference = ReferenceSpec::SetPoint(draw.set_point.clone());
-        }
-        scenario.initial_q.clone_from(&draw.initial_q);
-        scenario.initial_qd.clone_from(&draw.initial_qd);
-        if self.parameter_errors {
-            let plant =
-                uncertainty::scaled(&model.robot, &draw.factors).map_err(|e| e.to_string())?;
-            scenario.plant = Some(plant);
-        }
-        if self.sensor_noise.iter().any(|&s| s > 0.0) {
-            scenario.sensor_noise = Some(SensorNoise {
-                q: self.sensor_noise[0],
-                qd: self.sensor_noise[1],
-                seed: draw.noise_seed,
-            });
-        }
-        scenario.compare = false;
-        Ok(scenario)
     }
 
     /// The factors of a plant with the nominal numbers, one per module.

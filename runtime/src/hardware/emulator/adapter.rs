@@ -17,11 +17,19 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use super::device::later;
-
 /// Data bytes in one full USB packet of an FTDI full-speed chip (64 bytes less the two
 /// modem-status bytes).
 pub const PACKET_PAYLOAD: usize = 62;
+
+/// Far enough in the future to mean "never" and still be a valid `Instant`.
+const NEVER: Duration = Duration::from_secs(100 * 365 * 24 * 3600);
+
+/// `t + d`, saturating far in the future instead of overflowing.
+pub fn later(t: Instant, d: Duration) -> Instant {
+    t.checked_add(d)
+        .or_else(|| t.checked_add(NEVER))
+        .unwrap_or(t)
+}
 
 /// Bytes handed to the host at one moment.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -22,22 +22,12 @@ use crate::protocol::{
     encode_status, parse_sync_write, parse_write,
 };
 
-use super::adapter::{Adapter, Delivery};
+use super::adapter::{Adapter, Delivery, later};
 use super::servos::{Reply, Servos};
 use super::{EmulatorError, EmulatorLog, EmulatorSettings, Faults, ReplyFate, StateReply};
 
 /// What the packet timeout allows beyond the wire time of the announced packet.
 pub const PACKET_TIMEOUT_MARGIN: Duration = Duration::from_millis(10);
-
-/// Far enough in the future to mean "never" and still be a valid `Instant`.
-const NEVER: Duration = Duration::from_secs(100 * 365 * 24 * 3600);
-
-/// `t + d`, saturating far in the future instead of overflowing.
-pub fn later(t: Instant, d: Duration) -> Instant {
-    t.checked_add(d)
-        .or_else(|| t.checked_add(NEVER))
-        .unwrap_or(t)
-}
 
 /// How long a servo waits for the rest of a packet whose first byte it has seen: the wire
 /// time of the whole packet at `baud` (the prefix alone while its length field is not yet
@@ -118,7 +108,8 @@ impl<'m> Device<'m> {
     ) -> Result<Device<'m>, EmulatorError> {
         super::check(settings)?;
         super::check_silent_servo(settings, &map.hardware().servo_ids())?;
-        let baud_register = crate::hardware::limits::baud_register(settings.baud).unwrap_or(3);
+        let baud_register =
+            crate::hardware_description::limits::baud_register(settings.baud).unwrap_or(3);
         let delay_register = (settings.return_delay.as_micros() / 2).min(254) as u8;
         let origin = plant.time();
         let mut servos = Servos::new(map, plant, baud_register, delay_register);

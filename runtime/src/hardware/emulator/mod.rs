@@ -50,10 +50,11 @@ use std::time::{Duration, Instant};
 use softcbf_description::robot::Robot;
 
 use crate::hardware::control_table::ServoState;
-use crate::hardware::description;
 use crate::hardware::mapping::{MappingError, TendonMap};
+use crate::hardware_description as description;
 use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::{Model, ModelError};
+use crate::noise::SensorNoise;
 use crate::plant::Plant;
 use device::Device;
 
@@ -89,37 +90,6 @@ impl Default for Faults {
             silent_after: Duration::ZERO,
             seed: 1,
         }
-    }
-}
-
-/// Gaussian noise added to the readings before the servo rounds them to register units.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SensorNoise {
-    /// Standard deviation of Present Position \[position units\].
-    pub position: f64,
-    /// Standard deviation of Present Velocity \[velocity units\].
-    pub velocity: f64,
-    /// Seed of the noise draws (a stream of its own: noise does not shift the faults).
-    pub seed: u64,
-}
-
-impl SensorNoise {
-    /// No noise.
-    pub const NONE: SensorNoise = SensorNoise {
-        position: 0.0,
-        velocity: 0.0,
-        seed: 1,
-    };
-
-    /// Whether any noise is added.
-    pub fn is_on(&self) -> bool {
-        self.position > 0.0 || self.velocity > 0.0
-    }
-}
-
-impl Default for SensorNoise {
-    fn default() -> Self {
-        SensorNoise::NONE
     }
 }
 
@@ -400,7 +370,7 @@ fn setting(message: String) -> EmulatorError {
 
 /// Refuses settings the emulator cannot use, naming the setting.
 fn check(settings: &EmulatorSettings) -> Result<(), EmulatorError> {
-    use crate::hardware::limits::{LATENCY_TIMER_MS, NOISE_UNITS};
+    use crate::hardware_description::limits::{LATENCY_TIMER_MS, NOISE_UNITS};
     let latency_ms = settings.latency_timer.as_secs_f64() * 1e3;
     if latency_ms > LATENCY_TIMER_MS.max {
         return Err(setting(format!(

@@ -44,13 +44,14 @@
 
 use std::time::Duration;
 
+use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
-use rand::{RngExt, SeedableRng};
 
-use super::SensorNoise;
 use crate::hardware::control_table::{self as table, Access, Area, Item, ServoState, Values};
 use crate::hardware::mapping::TendonMap;
 use crate::integrator::IntegratorError;
+use crate::noise::SensorNoise;
+use crate::noise::standard_normal;
 use crate::plant::Plant;
 use crate::protocol::{
     BROADCAST_ID, Instruction, PacketRef, StatusError, parse_read, parse_sync_read,
@@ -136,13 +137,6 @@ pub struct Servos<'m> {
 /// Offset between the fault draws' seed and the noise draws' (any odd constant): the same
 /// `--seed` gives the two unrelated streams.
 const NOISE_STREAM: u64 = 0x9E37_79B9_7F4A_7C15;
-
-/// A draw of the standard normal distribution (Box–Muller, one of the pair).
-pub(crate) fn standard_normal(draws: &mut Xoshiro256PlusPlus) -> f64 {
-    let [u, v]: [f64; 2] = draws.random();
-    // 1 − u lies in (0, 1]: its logarithm is finite.
-    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-}
 
 fn range(addr: u16, size: u16) -> std::ops::Range<usize> {
     usize::from(addr)..usize::from(addr) + usize::from(size)

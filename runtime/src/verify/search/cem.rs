@@ -17,7 +17,7 @@
 use rand::RngExt;
 use rand::rngs::Xoshiro256PlusPlus;
 
-use crate::hardware::emulator::servos::standard_normal;
+use crate::noise::standard_normal;
 
 /// How the method is tuned.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -8,9 +8,9 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::exit;
-use crate::hardware::cli::output_directory;
 use crate::model::Model;
 use crate::output::Console;
+use crate::output::output_directory;
 use crate::scenario::ScenarioFile;
 use crate::verify::draw::Draw;
 use crate::verify::figures::write_search_figure;

@@ -3,7 +3,9 @@
 //!
 //! The description keeps the table as written ([`HardwareTable`]); [`load`] reads and
 //! checks it with the description's errors, naming the file, line and field. The format is
-//! documented in `robots/README.md`; the mapping itself is [`super::mapping`].
+//! documented in `robots/README.md`; the mapping itself is [`crate::hardware::mapping`].
+
+pub mod limits;
 
 use std::ops::{Deref, Range};
 
@@ -15,7 +17,6 @@ use softcbf_description::robot::{HardwareTable, Module, Robot, Routing};
 use softcbf_description::toml_file::{Checker, FileError};
 use toml::Spanned;
 
-use super::limits;
 use crate::control::SafetyMode;
 
 /// Where the controller takes `q̇` from.
