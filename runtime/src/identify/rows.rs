@@ -403,7 +403,16 @@ fn reduce_unit(
 
     let mut accumulators: Vec<Vec<Accumulator>> = shifts
         .iter()
-        .map(|_| (0..2 * modules).map(|_| Accumulator::new(p + 1)).collect())
+        .map(|_| {
+            (0..2 * modules)
+                .map(|g| {
+                    // A group's rows are zero outside its module's parameters.
+                    let base = PER_MODULE * (g % modules);
+                    let columns = (base..base + PER_MODULE).chain([p]).collect();
+                    Accumulator::of_columns(p + 1, columns)
+                })
+                .collect()
+        })
         .collect();
     let mut ws = DynamicsWorkspace::new(model);
     let (mut fq, mut fqd, mut fqdd) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
