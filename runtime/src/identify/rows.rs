@@ -256,7 +256,7 @@ pub fn build_shifted(
     let modules = model.n_modules();
     let p = PER_MODULE * modules;
     let geometry = Geometry::new(model, hardware);
-    let per_log: Vec<Vec<Item>> = logs.iter().map(|log| items(log, settings)).collect();
+    let per_log: Vec<Vec<Item>> = parallel_map(logs.len(), |l| items(&logs[l], settings));
     for (log, items) in logs.iter().zip(&per_log) {
         if items.is_empty() {
             return Err(too_short(log, settings));
@@ -449,10 +449,10 @@ fn reduce_unit(
                         let (w0, w1, w2) = (w * k0, w * k1, w * k2);
                         f1 += w0;
                         let q = log.q_of(k);
-                        for r in 0..nq {
-                            fq[r] += w0 * q[r];
-                            fqd[r] += w1 * q[r];
-                            fqdd[r] += w2 * q[r];
+                        for (((a, b), c), &q) in fq.iter_mut().zip(&mut fqd).zip(&mut fqdd).zip(q) {
+                            *a += w0 * q;
+                            *b += w1 * q;
+                            *c += w2 * q;
                         }
                     }
                     k += 1;
