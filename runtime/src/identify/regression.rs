@@ -433,6 +433,62 @@ mod tests {
     }
 
     #[test]
+    fn rows_reduced_in_their_nonzero_columns_give_what_all_columns_give() {
+        // Rows of width 6 whose parameters 0, 2, 4 are always zero (another module's):
+        // reduced in columns 1, 3 and the right-hand side 5, against all six.
+        let mut kept = Accumulator::of_columns(6, vec![1, 3, 5]);
+        let mut all = Accumulator::new(6);
+        for i in 0..1500 {
+            let (a, b) = ((i as f64 * 0.37).sin(), (i as f64 * 0.11).cos());
+            let noise = if i % 2 == 0 { 0.01 } else { -0.01 };
+            let row = [0.0, a, 0.0, b, 0.0, 1.5 * a - 0.5 * b + noise];
+            kept.push(&row, i % 3);
+            all.push(&row, i % 3);
+        }
+        let (kept, all) = (kept.finish().unwrap(), all.finish().unwrap());
+        assert_eq!(kept.r.ncols(), 3);
+        assert_eq!((kept.rows, kept.counts), (all.rows, all.counts));
+        assert_eq!(kept.sums, all.sums);
+        // The other parameters held (at any value: their columns are zero).
+        let config = Config {
+            unknowns: vec![vec![1], vec![3]],
+            held: vec![(0, 7.0), (2, -1.0), (4, 0.3)],
+        };
+        let x = solve(&stack(std::iter::once((&kept, 1.0)), &config)).unwrap();
+        let y = solve(&stack(std::iter::once((&all, 1.0)), &config)).unwrap();
+        for (a, b) in x.iter().zip(&y) {
+            assert!((a - b).abs() < 1e-12 * b.abs(), "{x:?} {y:?}");
+        }
+        let theta = config.theta(&x, 5);
+        let (rk, ra) = (kept.residual_squares(&theta), all.residual_squares(&theta));
+        assert!((rk - ra).abs() < 1e-12 * ra, "{rk} {ra}");
+        let (ek, ea) = (
+            kept.explained_squares(&theta, &[1, 2]),
+            all.explained_squares(&theta, &[1, 2]),
+        );
+        assert!((ek - ea).abs() < 1e-12 * ea, "{ek} {ea}");
+        // Merged halves are the whole.
+        let mut first = Accumulator::of_columns(6, vec![1, 3, 5]);
+        let mut second = Accumulator::of_columns(6, vec![1, 3, 5]);
+        for i in 0..1500 {
+            let (a, b) = ((i as f64 * 0.37).sin(), (i as f64 * 0.11).cos());
+            let noise = if i % 2 == 0 { 0.01 } else { -0.01 };
+            let row = [0.0, a, 0.0, b, 0.0, 1.5 * a - 0.5 * b + noise];
+            if i < 700 {
+                first.push(&row, i % 3);
+            } else {
+                second.push(&row, i % 3);
+            }
+        }
+        let merged = first.finish().unwrap().merge(second.finish().unwrap());
+        assert_eq!(merged.rows, 1500);
+        let z = solve(&stack(std::iter::once((&merged, 1.0)), &config)).unwrap();
+        for (a, b) in z.iter().zip(&y) {
+            assert!((a - b).abs() < 1e-12 * b.abs(), "{z:?} {y:?}");
+        }
+    }
+
+    #[test]
     fn a_zero_column_is_found_by_its_norm_and_a_dependent_pair_by_the_spectrum() {
         let rows: Vec<Vec<f64>> = (0..50)
             .map(|i| {
