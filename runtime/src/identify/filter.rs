@@ -28,16 +28,26 @@ fn primitive(x: f64) -> f64 {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Kernel {
     half_width: f64,
+    /// `1 / T` \[1/s\]: the kernel is evaluated hundreds of millions of times in an hour of
+    /// logs, and a product is several times cheaper than a quotient.
+    inverse: f64,
     /// `1 / ∫₋₁¹ (1 − x²)⁶ dx`.
     scale: f64,
+    /// The factors of `k`, `k′`, `k″`: `scale/T`, `scale/T²`, `scale/T³`.
+    factors: [f64; 3],
 }
 
 impl Kernel {
     /// The kernel of half-width `half_width` \[s\] (positive and finite).
     pub fn new(half_width: f64) -> Kernel {
+        let t = half_width;
+        let scale = 0.5 / primitive(1.0);
+        let c = scale / t;
         Kernel {
             half_width,
-            scale: 0.5 / primitive(1.0),
+            inverse: 1.0 / t,
+            scale,
+            factors: [c, c / t, c / (t * t)],
         }
     }
 
@@ -48,8 +58,7 @@ impl Kernel {
 
     /// `k(s)`, `k′(s)`, `k″(s)` \[1/s, 1/s², 1/s³\]; zero outside `(−T, T)`.
     pub fn values(&self, s: f64) -> [f64; 3] {
-        let t = self.half_width;
-        let x = s / t;
+        let x = s * self.inverse;
         if x.is_nan() || x.abs() >= 1.0 {
             return [0.0; 3];
         }
@@ -57,17 +66,17 @@ impl Kernel {
         let u = 1.0 - x2;
         let u2 = u * u;
         let u4 = u2 * u2;
-        let c = self.scale / t;
+        let [c0, c1, c2] = self.factors;
         [
-            c * u4 * u2,
-            c / t * (-12.0 * x) * u4 * u,
-            c / (t * t) * u4 * (132.0 * x2 - 12.0),
+            c0 * u4 * u2,
+            c1 * (-12.0 * x) * u4 * u,
+            c2 * u4 * (132.0 * x2 - 12.0),
         ]
     }
 
     /// `K(s) = ∫₋T^s k`: 0 below `−T`, 1 above `T`.
     pub fn cumulative(&self, s: f64) -> f64 {
-        let x = s / self.half_width;
+        let x = s * self.inverse;
         if x <= -1.0 {
             0.0
         } else if x >= 1.0 {

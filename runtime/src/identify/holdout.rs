@@ -95,8 +95,12 @@ pub fn predict(
     let directions: Vec<f64> = hardware.modules.iter().flat_map(|m| m.directions).collect();
     let mut predicted = Vec::with_capacity(plants.len());
     let mut rms = Vec::with_capacity(plants.len());
-    for plant in plants {
-        let q = simulate(plant, &directions, log, j0, last, &v0)?;
+    // The plants' simulations are independent: one thread each.
+    let simulated = super::parallel_map(plants.len(), |k| {
+        simulate(&plants[k], &directions, log, j0, last, &v0)
+    });
+    for q in simulated {
+        let q = q?;
         let (mut sum, mut count) = (0.0, 0usize);
         for (a, b) in q.iter().zip(&measured) {
             if a.is_finite() {

@@ -513,11 +513,10 @@ pub fn identify(
         let noise = noise::at_rest(logs)
             .filter(|sigma| sigma.iter().any(|&s| s > 0.0))
             .and_then(|sigma| {
-                let noisy: Vec<Log> = logs
-                    .iter()
-                    .enumerate()
-                    .map(|(l, log)| noise::with_added(log, &sigma, noise::SEED + l as u64))
-                    .collect();
+                // One log per thread: each draws from its own seed.
+                let noisy: Vec<Log> = parallel_map(logs.len(), |l| {
+                    noise::with_added(&logs[l], &sigma, noise::SEED + l as u64)
+                });
                 rows::build(&model, &hardware, &noisy, &settings).ok()
             })
             .and_then(|rows| estimate::refit(&rows, &fit));

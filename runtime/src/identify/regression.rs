@@ -15,20 +15,27 @@ const CHUNK_ROWS: usize = 512;
 /// Rows of one group in one block, reduced.
 #[derive(Clone, Debug)]
 pub struct Reduced {
-    /// `R̃`: at most `width` rows, `width` columns (parameters, then the right-hand side).
+    /// `R̃`: at most `columns.len()` rows, one column per entry of `columns`.
     pub r: Mat<f64>,
+    /// The parameter (or, last, the right-hand side) of each column of `r`, increasing: a
+    /// group's rows are zero in every other parameter's column (another module's), which
+    /// is left out of the factorization.
+    pub columns: Vec<usize>,
     /// Rows reduced into it.
     pub rows: usize,
-    /// Sum of the rows of each coordinate of a module (Δx, Δy, δL), all columns.
+    /// Sum of the rows of each coordinate of a module (Δx, Δy, δL), all columns of the
+    /// full row (parameters, then the right-hand side).
     pub sums: [Vec<f64>; 3],
     /// Number of rows of each coordinate.
     pub counts: [usize; 3],
 }
 
-/// Collects rows `[a | y]` and reduces them as they come.
+/// Collects rows `[a | y]` and reduces them as they come, keeping only the columns it was
+/// made for.
 #[derive(Clone, Debug)]
 pub struct Accumulator {
-    width: usize,
+    /// The kept columns of the full row, increasing.
+    columns: Vec<usize>,
     buffer: Mat<f64>,
     filled: usize,
     rows: usize,
@@ -38,10 +45,20 @@ pub struct Accumulator {
 
 impl Accumulator {
     /// An accumulator of rows of `width` values (parameters and right-hand side).
+    #[cfg(test)]
     pub fn new(width: usize) -> Accumulator {
+        Accumulator::of_columns(width, (0..width).collect())
+    }
+
+    /// An accumulator of rows of `width` values that are zero outside `columns`
+    /// (increasing, each below `width`); only those are reduced.
+    pub fn of_columns(width: usize, columns: Vec<usize>) -> Accumulator {
+        debug_assert!(columns.windows(2).all(|w| w[0] < w[1]));
+        debug_assert!(columns.iter().all(|&c| c < width));
+        let kept = columns.len();
         Accumulator {
-            width,
-            buffer: Mat::zeros(CHUNK_ROWS + width, width),
+            columns,
+            buffer: Mat::zeros(CHUNK_ROWS + kept, kept),
             filled: 0,
             rows: 0,
             sums: std::array::from_fn(|_| vec![0.0; width]),
@@ -49,29 +66,45 @@ impl Accumulator {
         }
     }
 
-    /// Adds one row of coordinate `coordinate` (0, 1, 2: Δx, Δy, δL of its module).
+    /// Adds one row of coordinate `coordinate` (0, 1, 2: Δx, Δy, δL of its module): the
+    /// full row, `width` values, zero outside the accumulator's columns.
     pub fn push(&mut self, row: &[f64], coordinate: usize) {
         if self.filled == self.buffer.nrows() {
             self.reduce();
         }
-        for (k, &value) in row.iter().enumerate().take(self.width) {
-            self.buffer[(self.filled, k)] = value;
-            self.sums[coordinate % 3][k] += value;
+        let sums = &mut self.sums[coordinate % 3];
+        for (c, &k) in self.columns.iter().enumerate() {
+            let value = row[k];
+            self.buffer[(self.filled, c)] = value;
+            sums[k] += value;
         }
         self.filled += 1;
         self.rows += 1;
         self.counts[coordinate % 3] += 1;
     }
 
+    /// Adds one row already in the accumulator's columns (`columns.len()` values); it
+    /// counts as a row of coordinate 0.
+    fn push_kept(&mut self, row: impl Iterator<Item = f64>) {
+        if self.filled == self.buffer.nrows() {
+            self.reduce();
+        }
+        for (c, value) in row.enumerate() {
+            self.buffer[(self.filled, c)] = value;
+        }
+        self.filled += 1;
+        self.rows += 1;
+    }
+
     /// Replaces the buffered rows by their `R̃`.
     fn reduce(&mut self) {
-        if self.filled <= self.width {
+        if self.filled <= self.columns.len() {
             return;
         }
         let qr = self.buffer.get(..self.filled, ..).qr();
         let r = qr.thin_R();
         let k = r.nrows();
-        for j in 0..self.width {
+        for j in 0..self.columns.len() {
             for i in 0..k {
                 self.buffer[(i, j)] = if i <= j { r[(i, j)] } else { 0.0 };
             }
@@ -87,6 +120,7 @@ impl Accumulator {
         self.reduce();
         Some(Reduced {
             r: self.buffer.get(..self.filled, ..).to_owned(),
+            columns: self.columns,
             rows: self.rows,
             sums: self.sums,
             counts: self.counts,
@@ -95,14 +129,14 @@ impl Accumulator {
 }
 
 impl Reduced {
-    /// Two reductions of rows of the same group as one.
+    /// Two reductions of rows of the same group (the same columns) as one.
     pub fn merge(self, other: Reduced) -> Reduced {
-        let width = self.r.ncols();
-        let mut accumulator = Accumulator::new(width);
+        debug_assert_eq!(self.columns, other.columns);
+        let width = self.sums[0].len();
+        let mut accumulator = Accumulator::of_columns(width, self.columns.clone());
         for part in [&self, &other] {
             for i in 0..part.r.nrows() {
-                let row: Vec<f64> = (0..width).map(|j| part.r[(i, j)]).collect();
-                accumulator.push(&row, 0);
+                accumulator.push_kept((0..part.r.ncols()).map(|j| part.r[(i, j)]));
             }
         }
         accumulator.reduce();
@@ -115,19 +149,33 @@ impl Reduced {
         let counts = std::array::from_fn(|c| self.counts[c] + other.counts[c]);
         Reduced {
             r: accumulator.buffer.get(..accumulator.filled, ..).to_owned(),
+            columns: self.columns,
             rows: self.rows + other.rows,
             sums,
             counts,
         }
     }
 
+    /// The column of `r` holding parameter `j`, if kept.
+    fn column_of(&self, j: usize) -> Option<usize> {
+        self.columns.binary_search(&j).ok()
+    }
+
     /// `‖A θ − y‖²` of these rows (`theta` has one value per parameter).
     pub fn residual_squares(&self, theta: &[f64]) -> f64 {
-        let p = theta.len();
+        let Some((&last, parameters)) = self.columns.split_last() else {
+            return 0.0;
+        };
+        debug_assert_eq!(last, theta.len());
+        let y = parameters.len();
         (0..self.r.nrows())
             .map(|i| {
-                let v: f64 =
-                    (0..p).map(|j| self.r[(i, j)] * theta[j]).sum::<f64>() - self.r[(i, p)];
+                let v: f64 = parameters
+                    .iter()
+                    .enumerate()
+                    .map(|(c, &j)| self.r[(i, c)] * theta[j])
+                    .sum::<f64>()
+                    - self.r[(i, y)];
                 v * v
             })
             .sum()
@@ -136,9 +184,13 @@ impl Reduced {
     /// `Σ s²` over the rows of `s = a_S · θ_S`, the part of each row the parameters
     /// `columns` explain (for the sum of squares of the tendon forces).
     pub fn explained_squares(&self, theta: &[f64], columns: &[usize]) -> f64 {
+        let kept: Vec<(usize, usize)> = columns
+            .iter()
+            .filter_map(|&j| self.column_of(j).map(|c| (c, j)))
+            .collect();
         (0..self.r.nrows())
             .map(|i| {
-                let v: f64 = columns.iter().map(|&j| self.r[(i, j)] * theta[j]).sum();
+                let v: f64 = kept.iter().map(|&(c, j)| self.r[(i, c)] * theta[j]).sum();
                 v * v
             })
             .sum()
@@ -175,16 +227,41 @@ impl Config {
 /// One reduced block's rows in the unknowns of `config`: `[X | z]` with `X` the summed
 /// columns of each unknown and `z = y − A θ_held`, scaled by `weight`.
 fn project(reduced: &Reduced, config: &Config, weight: f64, out: &mut Vec<Vec<f64>>) {
-    let p = reduced.r.ncols() - 1;
+    let Some((_, parameters)) = reduced.columns.split_last() else {
+        return;
+    };
+    let y = parameters.len();
+    // Per kept column: its unknown, or its held value (a column in neither multiplies a
+    // parameter of no unknown: none, as every parameter is one or the other).
+    let mut unknown_of: Vec<Option<usize>> = vec![None; parameters.len()];
+    let mut held_of: Vec<Option<f64>> = vec![None; parameters.len()];
+    for (u, members) in config.unknowns.iter().enumerate() {
+        for &j in members {
+            if let Some(c) = reduced.column_of(j) {
+                unknown_of[c] = Some(u);
+            }
+        }
+    }
+    for &(j, value) in &config.held {
+        if let Some(c) = reduced.column_of(j) {
+            held_of[c] = Some(value);
+        }
+    }
     for i in 0..reduced.r.nrows() {
-        let r = |j: usize| reduced.r[(i, j)];
-        let mut row: Vec<f64> = config
-            .unknowns
-            .iter()
-            .map(|members| weight * members.iter().map(|&j| r(j)).sum::<f64>())
-            .collect();
-        let held: f64 = config.held.iter().map(|&(j, v)| r(j) * v).sum();
-        row.push(weight * (r(p) - held));
+        let mut row = vec![0.0; config.unknowns.len() + 1];
+        let mut held = 0.0;
+        for c in 0..parameters.len() {
+            let r = reduced.r[(i, c)];
+            if let Some(u) = unknown_of[c] {
+                row[u] += r;
+            } else if let Some(value) = held_of[c] {
+                held += r * value;
+            }
+        }
+        for value in row.iter_mut() {
+            *value *= weight;
+        }
+        row[config.unknowns.len()] = weight * (reduced.r[(i, y)] - held);
         out.push(row);
     }
 }
@@ -353,6 +430,62 @@ mod tests {
         };
         let x = solve(&stack(std::iter::once((&reduced, 1.0)), &held)).unwrap();
         assert!((x[0] - 2.0).abs() < 1e-3 && (x[1] - 0.5).abs() < 1e-3);
+    }
+
+    #[test]
+    fn rows_reduced_in_their_nonzero_columns_give_what_all_columns_give() {
+        // Rows of width 6 whose parameters 0, 2, 4 are always zero (another module's):
+        // reduced in columns 1, 3 and the right-hand side 5, against all six.
+        let mut kept = Accumulator::of_columns(6, vec![1, 3, 5]);
+        let mut all = Accumulator::new(6);
+        for i in 0..1500 {
+            let (a, b) = ((i as f64 * 0.37).sin(), (i as f64 * 0.11).cos());
+            let noise = if i % 2 == 0 { 0.01 } else { -0.01 };
+            let row = [0.0, a, 0.0, b, 0.0, 1.5 * a - 0.5 * b + noise];
+            kept.push(&row, i % 3);
+            all.push(&row, i % 3);
+        }
+        let (kept, all) = (kept.finish().unwrap(), all.finish().unwrap());
+        assert_eq!(kept.r.ncols(), 3);
+        assert_eq!((kept.rows, kept.counts), (all.rows, all.counts));
+        assert_eq!(kept.sums, all.sums);
+        // The other parameters held (at any value: their columns are zero).
+        let config = Config {
+            unknowns: vec![vec![1], vec![3]],
+            held: vec![(0, 7.0), (2, -1.0), (4, 0.3)],
+        };
+        let x = solve(&stack(std::iter::once((&kept, 1.0)), &config)).unwrap();
+        let y = solve(&stack(std::iter::once((&all, 1.0)), &config)).unwrap();
+        for (a, b) in x.iter().zip(&y) {
+            assert!((a - b).abs() < 1e-12 * b.abs(), "{x:?} {y:?}");
+        }
+        let theta = config.theta(&x, 5);
+        let (rk, ra) = (kept.residual_squares(&theta), all.residual_squares(&theta));
+        assert!((rk - ra).abs() < 1e-12 * ra, "{rk} {ra}");
+        let (ek, ea) = (
+            kept.explained_squares(&theta, &[1, 2]),
+            all.explained_squares(&theta, &[1, 2]),
+        );
+        assert!((ek - ea).abs() < 1e-12 * ea, "{ek} {ea}");
+        // Merged halves are the whole.
+        let mut first = Accumulator::of_columns(6, vec![1, 3, 5]);
+        let mut second = Accumulator::of_columns(6, vec![1, 3, 5]);
+        for i in 0..1500 {
+            let (a, b) = ((i as f64 * 0.37).sin(), (i as f64 * 0.11).cos());
+            let noise = if i % 2 == 0 { 0.01 } else { -0.01 };
+            let row = [0.0, a, 0.0, b, 0.0, 1.5 * a - 0.5 * b + noise];
+            if i < 700 {
+                first.push(&row, i % 3);
+            } else {
+                second.push(&row, i % 3);
+            }
+        }
+        let merged = first.finish().unwrap().merge(second.finish().unwrap());
+        assert_eq!(merged.rows, 1500);
+        let z = solve(&stack(std::iter::once((&merged, 1.0)), &config)).unwrap();
+        for (a, b) in z.iter().zip(&y) {
+            assert!((a - b).abs() < 1e-12 * b.abs(), "{z:?} {y:?}");
+        }
     }
 
     #[test]

@@ -256,7 +256,7 @@ pub fn build_shifted(
     let modules = model.n_modules();
     let p = PER_MODULE * modules;
     let geometry = Geometry::new(model, hardware);
-    let per_log: Vec<Vec<Item>> = logs.iter().map(|log| items(log, settings)).collect();
+    let per_log: Vec<Vec<Item>> = parallel_map(logs.len(), |l| items(&logs[l], settings));
     for (log, items) in logs.iter().zip(&per_log) {
         if items.is_empty() {
             return Err(too_short(log, settings));
@@ -403,7 +403,16 @@ fn reduce_unit(
 
     let mut accumulators: Vec<Vec<Accumulator>> = shifts
         .iter()
-        .map(|_| (0..2 * modules).map(|_| Accumulator::new(p + 1)).collect())
+        .map(|_| {
+            (0..2 * modules)
+                .map(|g| {
+                    // A group's rows are zero outside its module's parameters.
+                    let base = PER_MODULE * (g % modules);
+                    let columns = (base..base + PER_MODULE).chain([p]).collect();
+                    Accumulator::of_columns(p + 1, columns)
+                })
+                .collect()
+        })
         .collect();
     let mut ws = DynamicsWorkspace::new(model);
     let (mut fq, mut fqd, mut fqdd) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
@@ -440,10 +449,10 @@ fn reduce_unit(
                         let (w0, w1, w2) = (w * k0, w * k1, w * k2);
                         f1 += w0;
                         let q = log.q_of(k);
-                        for r in 0..nq {
-                            fq[r] += w0 * q[r];
-                            fqd[r] += w1 * q[r];
-                            fqdd[r] += w2 * q[r];
+                        for (((a, b), c), &q) in fq.iter_mut().zip(&mut fqd).zip(&mut fqdd).zip(q) {
+                            *a += w0 * q;
+                            *b += w1 * q;
+                            *c += w2 * q;
                         }
                     }
                     k += 1;
