@@ -1510,7 +1510,9 @@ pub(super) fn sampled_filter(
     status
 }
 
-/// Which rows of the predicted rows gave way on the last tick (see [`solve_giving_way`]).
+/// Which of the predicted rows gave way on the last tick, where they had no common point:
+/// the end-of-hold rows' robust margins first, before any row is relaxed (docs/model.md §5,
+/// "When the rows have no common point").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GaveWay {
     /// None: the command meets every row as written.
