@@ -152,8 +152,10 @@ pub fn one_line(summary: &RunSummary) -> String {
         if counts.uncertified > 0 {
             // The certified mode's ticks whose bound did not close: filtered, not proven.
             line += &format!(
-                "; {} of {} ticks not proven over their hold (the prediction's rows alone)",
-                counts.uncertified, counts.ticks
+                "; {} of {} ticks not proven over their hold (the prediction's rows alone; {})",
+                counts.uncertified,
+                counts.ticks,
+                counts.uncertified_reasons.describe()
             );
         }
     }

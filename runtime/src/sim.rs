@@ -286,6 +286,8 @@ pub struct TickCounts {
     /// Ticks whose command could not be certified over its hold (the certified mode's
     /// [`TickStatus::Uncertified`]).
     pub uncertified: usize,
+    /// Those ticks per reason.
+    pub uncertified_reasons: crate::control::UncertifiedCounts,
     /// Ticks run without the safety filter (plain PD+; not in `runs.csv`, whose runs are
     /// all filtered).
     pub unfiltered: usize,
@@ -607,9 +609,10 @@ pub fn simulate(
                 }
             }
             TickStatus::InvalidState(_) => counts.invalid_state += 1,
-            TickStatus::Uncertified(_) => {
+            TickStatus::Uncertified(why) => {
                 counts.qp_solves += 1;
                 counts.uncertified += 1;
+                counts.uncertified_reasons.add(why);
             }
         }
         observe(

@@ -80,6 +80,47 @@ impl Uncertified {
     }
 }
 
+/// How many ticks were not proven over their hold, per reason ([`Uncertified`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct UncertifiedCounts {
+    pub tube: usize,
+    pub domain: usize,
+    pub start: usize,
+    pub bound: usize,
+    pub budget: usize,
+}
+
+impl UncertifiedCounts {
+    /// Counts one tick not proven for `why`.
+    pub fn add(&mut self, why: Uncertified) {
+        *match why {
+            Uncertified::Tube => &mut self.tube,
+            Uncertified::Domain => &mut self.domain,
+            Uncertified::Start => &mut self.start,
+            Uncertified::Bound => &mut self.bound,
+            Uncertified::Budget => &mut self.budget,
+        } += 1;
+    }
+
+    /// The reasons that occurred with their counts, most frequent first:
+    /// `"bound 204, domain 23"` (empty when none did).
+    pub fn describe(&self) -> String {
+        let mut all = [
+            (self.bound, Uncertified::Bound),
+            (self.domain, Uncertified::Domain),
+            (self.tube, Uncertified::Tube),
+            (self.start, Uncertified::Start),
+            (self.budget, Uncertified::Budget),
+        ];
+        all.sort_by_key(|(count, _)| std::cmp::Reverse(*count));
+        all.iter()
+            .filter(|(count, _)| *count > 0)
+            .map(|(count, why)| format!("{} {count}", why.name()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
 /// Why a bound failed; `place` names the step (for a reader of the code).
 fn failed(why: Uncertified, place: &str) -> Uncertified {
     let _ = place;

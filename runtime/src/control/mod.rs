@@ -24,8 +24,8 @@ use std::ops::Range;
 
 pub mod certified;
 
-pub use certified::Uncertified;
 use certified::{CertifiedWorkspace, certified_filter};
+pub use certified::{Uncertified, UncertifiedCounts};
 
 use softcbf_description::gains::PAPER_GAINS;
 use softcbf_description::uncertainty::{self, ModuleFactors};

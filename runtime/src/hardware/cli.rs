@@ -992,6 +992,7 @@ fn write_summary(
         "invalid_state": s.invalid,
         "relaxed": s.relaxed,
         "uncertified": s.uncertified,
+        "uncertified_reasons": s.uncertified_reasons,
         "unfiltered": s.unfiltered,
         "interventions": s.interventions,
         "deadline_overruns": s.deadlines.deadline_overruns,
@@ -1117,6 +1118,12 @@ fn report(s: &RunSummary, limits: &VerdictLimits, console: &mut Console) {
         s.uncertified,
         s.deadlines.deadline_overruns
     ));
+    if s.uncertified > 0 {
+        console.say(&format!(
+            "not proven, why: {}",
+            s.uncertified_reasons.describe()
+        ));
+    }
     console.say(&format!(
         "deadlines: {} ticks overran (ended more than a period after they were due); {} \
          commands overran their hold (in force longer than the Δ they were computed for, by \

@@ -289,6 +289,7 @@ pub fn run_reporting<P: ServoPort>(
         invalid: 0,
         relaxed: 0,
         uncertified: 0,
+        uncertified_reasons: Default::default(),
         unfiltered: 0,
         interventions: 0,
         deadlines: Deadlines::default(),
@@ -724,7 +725,10 @@ fn control_loop<P: ServoPort>(
                         summary.invalid += 1;
                     }
                     TickStatus::Relaxed => summary.relaxed += 1,
-                    TickStatus::Uncertified(_) => summary.uncertified += 1,
+                    TickStatus::Uncertified(why) => {
+                        summary.uncertified += 1;
+                        summary.uncertified_reasons.add(why);
+                    }
                     TickStatus::Unfiltered => summary.unfiltered += 1,
                     TickStatus::Filtered => {}
                 }

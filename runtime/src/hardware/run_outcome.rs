@@ -178,6 +178,8 @@ pub struct RunSummary {
     /// Ticks whose command could not be certified over its hold
     /// ([`crate::control::TickStatus::Uncertified`]).
     pub uncertified: u64,
+    /// Those ticks per reason.
+    pub uncertified_reasons: crate::control::UncertifiedCounts,
     /// Ticks whose command was computed without the safety filter (`--no-filter`).
     pub unfiltered: u64,
     /// Ticks whose command the safety filter changed (by more than

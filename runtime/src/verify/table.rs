@@ -333,6 +333,8 @@ pub fn read_runs(
                 failed,
                 invalid_state,
                 uncertified,
+                // runs.csv has no column per reason.
+                uncertified_reasons: Default::default(),
                 unfiltered: 0,
             },
             integrator_steps,
@@ -560,6 +562,7 @@ mod tests {
                 failed: 0,
                 invalid_state: 0,
                 uncertified: 0,
+                uncertified_reasons: Default::default(),
                 unfiltered: 0,
             },
             integrator_steps: 300,
