@@ -7,10 +7,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use softcbf::hardware::log_description::LogDescription;
-use softcbf::identify::synthetic::{Multisine, Phase, SyntheticRun, write_log};
-use softcbf::identify::{
-    ExperimentKind, Options, hardware_of, identify, logs::Expected, read_logs,
-};
+use softcbf::identify::synthetic::benchmark_logs;
+use softcbf::identify::{Options, hardware_of, identify, logs::Expected, read_logs};
 use softcbf::model::Model;
 use softcbf_tests::robots;
 
@@ -25,43 +23,11 @@ fn cpu_seconds() -> f64 {
     ticks / 100.0
 }
 
-/// The benchmark's logs: 20 minutes of static tension sets, 40 of multisines.
+/// The benchmark's logs (`identify::synthetic::benchmark_logs`) in a fresh directory.
 fn generate(model: &Model) -> Vec<PathBuf> {
     let dir = std::env::temp_dir().join(format!("softcbf-identify-speed-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let mut run = SyntheticRun::new(model, model, 100.0, 1200.0);
-    run.tolerances = Default::default();
-    run.kind = Some(ExperimentKind::Static);
-    let hold = 3.0;
-    write_log(&dir.join("static"), &run, |tick, tensions| {
-        let step = (tick.t / hold) as usize;
-        for (s, f) in tensions.iter_mut().enumerate() {
-            let x = ((step * 7 + s * 13) % 17) as f64 / 16.0;
-            *f = 0.3 + 2.7 * x;
-        }
-        let into = tick.t - step as f64 * hold;
-        Phase {
-            step: step as f64,
-            rest: into > hold - 1.0,
-        }
-    })
-    .unwrap();
-    run.duration = 2400.0;
-    run.kind = Some(ExperimentKind::Dynamic);
-    let signals: Vec<Multisine> = (0..6)
-        .map(|s| Multisine::new(8, 0.2, 4.0, 1.4, 1.7 * s as f64 + 0.3))
-        .collect();
-    write_log(&dir.join("dynamic"), &run, |tick, tensions| {
-        for (f, signal) in tensions.iter_mut().zip(&signals) {
-            *f = 1.8 + signal.at(tick.t);
-        }
-        Phase {
-            step: 0.0,
-            rest: false,
-        }
-    })
-    .unwrap();
-    vec![dir.join("static"), dir.join("dynamic")]
+    benchmark_logs(model, &dir).unwrap().to_vec()
 }
 
 #[test]

@@ -117,6 +117,47 @@ pub struct SyntheticLog {
     pub clamps: (u32, u32),
 }
 
+/// The identify benchmark's hour of 100 Hz logs of `model` (its own plant, exact
+/// readings) in `dir/static` and `dir/dynamic`: 20 minutes of deterministic static
+/// tension sets (400 of 3 s each, in \[0.3, 3\] N, the last second of each at rest) and 40
+/// minutes of multisines (8 lines each from 0.2 to 4 Hz around 1.8 N). Shared by
+/// `cargo bench --bench identify` and `tests/tests/identify_speed.rs`, which time the same
+/// logs. Returns the two log directories.
+pub fn benchmark_logs(model: &Model, dir: &Path) -> Result<[PathBuf; 2], String> {
+    let mut run = SyntheticRun::new(model, model, 100.0, 1200.0);
+    run.tolerances = Default::default();
+    run.kind = Some(ExperimentKind::Static);
+    let hold = 3.0;
+    let (static_dir, dynamic_dir) = (dir.join("static"), dir.join("dynamic"));
+    write_log(&static_dir, &run, |tick, tensions| {
+        let step = (tick.t / hold) as usize;
+        for (s, f) in tensions.iter_mut().enumerate() {
+            let x = ((step * 7 + s * 13) % 17) as f64 / 16.0;
+            *f = 0.3 + 2.7 * x;
+        }
+        let into = tick.t - step as f64 * hold;
+        Phase {
+            step: step as f64,
+            rest: into > hold - 1.0,
+        }
+    })?;
+    run.duration = 2400.0;
+    run.kind = Some(ExperimentKind::Dynamic);
+    let signals: Vec<Multisine> = (0..6)
+        .map(|s| Multisine::new(8, 0.2, 4.0, 1.4, 1.7 * s as f64 + 0.3))
+        .collect();
+    write_log(&dynamic_dir, &run, |tick, tensions| {
+        for (f, signal) in tensions.iter_mut().zip(&signals) {
+            *f = 1.8 + signal.at(tick.t);
+        }
+        Phase {
+            step: 0.0,
+            rest: false,
+        }
+    })?;
+    Ok([static_dir, dynamic_dir])
+}
+
 /// Simulates `run`, asking `schedule` for each tick's tensions \[N\] (one per servo, servo
 /// `3i + k` pulls tendon `k` of module `i`), and writes `dir/trajectory.csv` and
 /// `dir/summary.json` (`dir` is created if missing).
