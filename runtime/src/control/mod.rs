@@ -1540,23 +1540,21 @@ fn solve_giving_way(controller: &mut Controller, m: usize) -> TickStatus {
     if let Some(status) = try_rows(controller) {
         return status;
     }
-    let nb = controller.nb;
-    let Some(sampled) = controller.sampled.as_mut() else {
-        return solve_rows(controller);
-    };
-    let written = (m + 1) * nb;
-    sampled.written[..written].copy_from_slice(&controller.rhs[..written]);
-    if let Some(robust) = sampled.robust.as_ref() {
-        for r in m * nb..written {
+    let written = (m + 1) * controller.nb;
+    if let Some(sampled) = controller.sampled.as_mut()
+        && let Some(robust) = sampled.robust.as_ref()
+    {
+        sampled.written[..written].copy_from_slice(&controller.rhs[..written]);
+        for r in m * controller.nb..written {
             controller.rhs[r] -= robust.margin[r];
         }
         if let Some(status) = try_rows(controller) {
             controller.gave_way = GaveWay::EndMargins;
             return status;
         }
-    }
-    if let Some(sampled) = controller.sampled.as_ref() {
-        controller.rhs[..written].copy_from_slice(&sampled.written[..written]);
+        if let Some(sampled) = controller.sampled.as_ref() {
+            controller.rhs[..written].copy_from_slice(&sampled.written[..written]);
+        }
     }
     solve_rows(controller)
 }
