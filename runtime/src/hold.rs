@@ -92,8 +92,9 @@ impl HoldPrediction {
     }
 
     /// Predicts the excursion over a hold of `hold` seconds for the mass-matrix inverse
-    /// `inverse_mass` and the stiffness `K̃` (both row-major `nq × nq`), the diagonal
-    /// `damping` of `D`, and the velocity `velocity` at the tick. Returns `false` (the
+    /// `inverse_mass` and the stiffness `K̃` (both row-major `nq × nq`), the damping `D`
+    /// (its diagonal, `nq` entries, or the whole matrix, row-major `nq × nq`), and the
+    /// velocity `velocity` at the tick. Returns `false` (the
     /// prediction is then unusable) for wrong sizes, a hold that is not finite and > 0, or
     /// a non-finite result.
     pub fn predict(
@@ -107,8 +108,9 @@ impl HoldPrediction {
         let nq = self.nq;
         let sizes = inverse_mass.len() == nq * nq
             && stiffness.len() == nq * nq
-            && damping.len() == nq
+            && (damping.len() == nq || damping.len() == nq * nq)
             && velocity.len() == nq;
+        let full = damping.len() == nq * nq;
         if !(sizes && hold.is_finite() && hold > 0.0) {
             return false;
         }
@@ -127,7 +129,14 @@ impl HoldPrediction {
                     .map(|c| inverse_row[c] * stiffness[c * nq + j])
                     .sum();
                 z[row + j] = -step * k;
-                z[row + nq + j] = -w * damping[j];
+                z[row + nq + j] = if full {
+                    -step
+                        * (0..nq)
+                            .map(|c| inverse_row[c] * damping[c * nq + j])
+                            .sum::<f64>()
+                } else {
+                    -w * damping[j]
+                };
                 z[row + 2 * nq + j] = w;
             }
         }
