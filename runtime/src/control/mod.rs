@@ -474,6 +474,10 @@ struct SampledWorkspace {
     /// The rows the command being checked was solved for.
     solved_rows: Vec<f64>,
     solved_rhs: Vec<f64>,
+    /// The barrier values at the samples under the last command (sample-major) and the
+    /// state `(q, q̇)` the hold starts from.
+    sample_values: Vec<f64>,
+    start: Vec<f64>,
 }
 
 /// One plant at a corner of the declared box, one number off at a time.
@@ -819,6 +823,8 @@ impl SampledWorkspace {
             best_rhs: vec![0.0; nb * (samples + 1)],
             solved_rows: vec![0.0; nb * (samples + 1) * nq],
             solved_rhs: vec![0.0; nb * (samples + 1)],
+            sample_values: vec![0.0; nb * samples],
+            start: vec![0.0; 2 * nq],
         }
     }
 }
@@ -1481,6 +1487,7 @@ pub(super) fn sampled_filter(
         sampled.plant.tau_mut().copy_from_slice(&controller.tau);
         sampled.state[..nq].copy_from_slice(q);
         sampled.state[nq..].copy_from_slice(qd);
+        sampled.start.copy_from_slice(&sampled.state);
         sampled.integrator.reset();
         let mut time = 0.0;
         // How far the command's own motion misses its samples' rows [m] (infinite where
@@ -1536,6 +1543,7 @@ pub(super) fn sampled_filter(
                     .as_ref()
                     .map_or(0.0, |robust| robust.margin[r]);
                 miss = miss.max(sampled.floor[r] + margin - sampled.values[k]);
+                sampled.sample_values[r] = sampled.values[k];
                 let row = &mut controller.rows[r * nq..(r + 1) * nq];
                 forced_row(jacobian_row, forced, nq, row);
                 controller.rhs[r] = sampled.floor[r] - sampled.values[k]
@@ -1579,6 +1587,14 @@ pub(super) fn sampled_filter(
                 sampled.best_rhs[..written].copy_from_slice(&sampled.solved_rhs[..written]);
                 best_gave_way = controller.gave_way;
             }
+            if miss.is_finite() && pass + 1 < passes + CHECK_PASSES {
+                // The next solve takes the samples' rows' sensitivity to the command from
+                // the plant itself (the linear model's was not good enough here).
+                sensitivity_rows(model, controller, m);
+            }
+            let Some(sampled) = controller.sampled.as_mut() else {
+                break;
+            };
             if pass + 1 == passes + CHECK_PASSES {
                 // No command met its rows: the one that missed least, with its rows.
                 if best_miss.is_finite() {
@@ -1599,6 +1615,81 @@ pub(super) fn sampled_filter(
     }
     status
 }
+
+/// The samples' rows `b_k(q'(t_j)) + S_kj (τ − τ') ≥ floor + margin` with the sensitivity
+/// `S_kj = ∂b_k(q(t_j))/∂τ` of the plant itself at the last command `τ'` (the guess), by
+/// forward differences: one integration of the plant over the hold per coordinate, under
+/// `τ'` with that coordinate's entry raised by `SENSITIVITY_STEP` (relative). Where such an
+/// integration stops short, the columns of the later samples keep the linear model's
+/// `J_k Γ_j`. Needs the barrier values at the samples under `τ'` in `sample_values` (`m`
+/// samples, `nb` each) and the rows written for `τ'`.
+fn sensitivity_rows(model: &Model, controller: &mut Controller, m: usize) {
+    let (nq, nb) = (controller.nq, controller.nb);
+    let Some(sampled) = controller.sampled.as_mut() else {
+        return;
+    };
+    for c in 0..nq {
+        let step = SENSITIVITY_STEP * (1.0 + sampled.guess[c].abs());
+        sampled.plant.tau_mut().copy_from_slice(&sampled.guess);
+        sampled.plant.tau_mut()[c] += step;
+        sampled.state[..nq].copy_from_slice(&sampled.start[..nq]);
+        sampled.state[nq..].copy_from_slice(&sampled.start[nq..]);
+        sampled.integrator.reset();
+        let mut time = 0.0;
+        for j in 0..m {
+            let next = sampled.prediction.time(j);
+            let mut system = PlantSystem {
+                model,
+                workspace: &mut sampled.plant,
+            };
+            if sampled
+                .integrator
+                .integrate(&mut system, time, next, &mut sampled.state)
+                .is_err()
+            {
+                break;
+            }
+            time = next;
+            sampled.point.copy_from_slice(&sampled.state[..nq]);
+            if softcbf_description::domain::state_problem(
+                &model.robot,
+                &sampled.point,
+                &sampled.zero,
+            )
+            .is_some()
+            {
+                break;
+            }
+            model.generated.barrier_terms(
+                &model.params,
+                &sampled.point,
+                &sampled.zero,
+                &mut sampled.values,
+                &mut sampled.jacobian,
+                &mut sampled.jdot_qd,
+            );
+            if !all_finite(&sampled.values) {
+                break;
+            }
+            for k in 0..nb {
+                let r = j * nb + k;
+                controller.rows[r * nq + c] = (sampled.values[k] - sampled.sample_values[r]) / step;
+            }
+        }
+    }
+    for r in 0..m * nb {
+        let margin = sampled
+            .robust
+            .as_ref()
+            .map_or(0.0, |robust| robust.margin[r]);
+        let row = &controller.rows[r * nq..(r + 1) * nq];
+        controller.rhs[r] =
+            sampled.floor[r] - sampled.sample_values[r] + dot(row, &sampled.guess) + margin;
+    }
+}
+
+/// The relative step of [`sensitivity_rows`]' differences (of `1 + |τ_c|` newtons).
+const SENSITIVITY_STEP: f64 = 1e-5;
 
 /// Passes after the settings' ones, where the command's own motion misses its rows.
 const CHECK_PASSES: usize = 4;
