@@ -3,7 +3,7 @@
 //!
 //! The description keeps the table as written ([`HardwareTable`]); [`load`] reads and
 //! checks it with the description's errors, naming the file, line and field. The format is
-//! documented in `robots/README.md`; the mapping itself is [`crate::hardware::mapping`].
+//! documented in `robots/README.md`; the mapping itself is `softcbf::hardware::mapping`.
 
 pub mod limits;
 
@@ -566,7 +566,7 @@ mod tests {
     use super::*;
     use std::path::Path;
 
-    const EXAMPLE: &str = include_str!("../../../robots/hardware-example.toml");
+    const EXAMPLE: &str = include_str!("../../../../robots/hardware-example.toml");
 
     /// The hardware of a robot file's text.
     fn hardware_of(text: &str, path: &str) -> Result<Hardware, FileError> {

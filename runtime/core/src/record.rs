@@ -34,7 +34,7 @@
 //! standard names, the barriers the labels `barrier 1`, `barrier 2`, … and the unit `m`).
 //!
 //! ```
-//! use softcbf::record::{Columns, Record, Row};
+//! use softcbf_core::record::{Columns, Record, Row};
 //! let columns = Columns::named(&["dx1"], &["module 1 corner 1"], &["loop [us]"])?;
 //! let mut record = Record::for_columns(columns, 10_001);
 //! let row = Row { t: 0.0, q: &[0.01], qd: &[0.0], tau: &[0.5], tau_nom: &[0.7], b: &[0.02], extra: &[12.0] };

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use softcbf_description::robot::{Robot, RobotError};
 
 /// Text of the default robot, compiled into the binary.
-pub const PAPER_SIM_ROBOT: &str = include_str!("../../robots/paper-sim.toml");
+pub const PAPER_SIM_ROBOT: &str = include_str!("../../../robots/paper-sim.toml");
 
 /// Loads `path`, or the embedded paper simulation robot when `None`. A `[hardware]` table
 /// is checked too ([`crate::hardware_description::load`]), so that a robot file is either

@@ -26,10 +26,10 @@ use crate::reference::ReferenceSpec;
 use crate::settings::{GainOptions, Gains, ScenarioGains, Source, Sourced, first, resolve_gains};
 
 /// Text of `scenarios/paper-sim.toml`, compiled in as the default scenario.
-pub const PAPER_SIM_SCENARIO: &str = include_str!("../../scenarios/paper-sim.toml");
+pub const PAPER_SIM_SCENARIO: &str = include_str!("../../../scenarios/paper-sim.toml");
 /// `scenarios/default.toml`: what a bare `softcbf simulate` runs (the paper's scenario with
 /// the certified rows).
-pub const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/default.toml");
+pub const DEFAULT_SCENARIO: &str = include_str!("../../../scenarios/default.toml");
 
 /// A scenario ready to run against a model.
 #[derive(Clone, Debug, PartialEq)]
@@ -142,7 +142,7 @@ pub struct ScenarioFile {
 }
 
 /// An array of numbers, each with its span.
-pub(crate) type RawVector = Spanned<Vec<Spanned<f64>>>;
+pub type RawVector = Spanned<Vec<Spanned<f64>>>;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -168,7 +168,7 @@ struct RawScenario {
     gains: RawGains,
     #[serde(default)]
     integrator: RawIntegrator,
-    /// `softcbf verify`'s ranges, read by [`crate::verify::spec`].
+    /// `softcbf verify`'s ranges, read by `softcbf::verify::spec`.
     verify: Option<RawVerify>,
 }
 
@@ -233,26 +233,26 @@ struct RawIntegrator {
 }
 
 /// `[verify]` as serde reads it: kept by the scenario file, checked by
-/// [`crate::verify::spec`].
+/// `softcbf::verify::spec`.
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct RawVerify {
-    pub(crate) runs: Option<Spanned<i64>>,
-    pub(crate) seed: Option<Spanned<i64>>,
-    pub(crate) duration: Option<Spanned<f64>>,
-    pub(crate) record_period: Option<Spanned<f64>>,
-    pub(crate) threshold: Option<Spanned<f64>>,
-    pub(crate) safety: Option<Spanned<Vec<Spanned<String>>>>,
-    pub(crate) control_periods: Option<RawVector>,
-    pub(crate) set_point_min: Option<RawVector>,
-    pub(crate) set_point_max: Option<RawVector>,
-    pub(crate) initial_q_min: Option<RawVector>,
-    pub(crate) initial_q_max: Option<RawVector>,
-    pub(crate) initial_qd_min: Option<RawVector>,
-    pub(crate) initial_qd_max: Option<RawVector>,
-    pub(crate) parameter_errors: Option<Spanned<bool>>,
-    pub(crate) sensor_noise_q: Option<Spanned<f64>>,
-    pub(crate) sensor_noise_qd: Option<Spanned<f64>>,
+pub struct RawVerify {
+    pub runs: Option<Spanned<i64>>,
+    pub seed: Option<Spanned<i64>>,
+    pub duration: Option<Spanned<f64>>,
+    pub record_period: Option<Spanned<f64>>,
+    pub threshold: Option<Spanned<f64>>,
+    pub safety: Option<Spanned<Vec<Spanned<String>>>>,
+    pub control_periods: Option<RawVector>,
+    pub set_point_min: Option<RawVector>,
+    pub set_point_max: Option<RawVector>,
+    pub initial_q_min: Option<RawVector>,
+    pub initial_q_max: Option<RawVector>,
+    pub initial_qd_min: Option<RawVector>,
+    pub initial_qd_max: Option<RawVector>,
+    pub parameter_errors: Option<Spanned<bool>>,
+    pub sensor_noise_q: Option<Spanned<f64>>,
+    pub sensor_noise_qd: Option<Spanned<f64>>,
 }
 
 /// Default control period \[s\] (the paper's simulation ticks at 1 kHz).
@@ -331,7 +331,7 @@ impl ScenarioFile {
     }
 
     /// The checker of this file's values (errors naming file, line and field).
-    pub(crate) fn checker(&self) -> Checker<'_> {
+    pub fn checker(&self) -> Checker<'_> {
         Checker {
             text: &self.text,
             path: &self.path,
@@ -339,7 +339,7 @@ impl ScenarioFile {
     }
 
     /// The `[verify]` table, if the file has one.
-    pub(crate) fn verify_table(&self) -> Option<&RawVerify> {
+    pub fn verify_table(&self) -> Option<&RawVerify> {
         self.raw.verify.as_ref()
     }
 
@@ -1054,7 +1054,7 @@ fn state(
 
 /// A given state vector of `robot` (`coordinates`: a `q`, else a `q̇`), checked like the
 /// scenario's initial state.
-pub(crate) fn state_vector(
+pub fn state_vector(
     c: &Checker<'_>,
     v: &RawVector,
     field: &str,
@@ -1156,12 +1156,7 @@ mod tests {
             seed: 5,
         };
         assert_eq!(scenario.sensor_noise, Some(noise));
-        // The emulator's readings take the same type.
-        let settings = crate::hardware::emulator::EmulatorSettings {
-            noise,
-            ..crate::hardware::emulator::EmulatorSettings::new(1_000_000)
-        };
-        assert!(settings.noise.is_on());
+        // The emulator's readings take the same type (`softcbf::hardware::emulator`'s tests).
     }
 
     #[test]

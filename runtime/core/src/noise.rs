@@ -20,7 +20,7 @@ pub const SENSOR_NOISE_M_PER_S: Limit = Limit::closed(0.0, 1.0, "m/s");
 /// sensor noise of the crate: on the state the simulated controller samples
 /// ([`crate::scenario::Scenario::sensor_noise`]: `position` on `q` \[m\], `velocity` on
 /// `q̇` \[m/s\]) and on the emulated servos' readings
-/// ([`crate::hardware::emulator::EmulatorSettings`]: Present Position and Present Velocity
+/// (`softcbf::hardware::emulator::EmulatorSettings`: Present Position and Present Velocity
 /// \[register units\], added before they are rounded).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SensorNoise {

@@ -6,7 +6,7 @@
 //! stopped early, missed deadlines), never on which safety mode or command produced it.
 //!
 //! A hardware run can also end on a fault (communication lost, a servo's error, a
-//! torque-off not confirmed): [`crate::hardware::run_outcome`] decides those first and
+//! torque-off not confirmed): `softcbf::hardware::run_outcome` decides those first and
 //! gives the rest of its verdict to [`judge`].
 
 use crate::exit;
