@@ -1637,7 +1637,7 @@ fn certify(model: &Model, controller: &mut Controller, q: &[f64], qd: &[f64]) ->
 /// The prediction's floating-point error \[m\] (absolute, and relative to the excursion of
 /// the barrier): the computed linear motion and barrier values stand in for exact ones, and
 /// differ from them by rounding far below this (the hold prediction agrees with a plain
-/// integration to 1e-10 relative, tests/tests/sampled_data.rs).
+/// integration to 1e-10 relative, tests/tests/controller/sampled_data.rs).
 const PREDICTION_SLACK: f64 = 1e-12;
 
 /// The first pass's estimate is the last proven gap times this (a little room for the gap

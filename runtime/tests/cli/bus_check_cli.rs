@@ -5,13 +5,11 @@
 //!
 //! The emulator steps its plant in real time: run optimized (`cargo test --release`).
 
-mod common;
-
 use std::path::Path;
 use std::process::Command;
 use std::sync::Mutex;
 
-use common::*;
+use crate::common::*;
 
 /// One emulator and its runs at a time: the bus check measures the machine's timing.
 static SERIAL: Mutex<()> = Mutex::new(());

@@ -11,10 +11,7 @@ use softcbf::record::{Columns, CsvWriter, Record, RecordError, Row};
 use softcbf::robot_file::load_robot;
 
 use softcbf_tests::TestRng;
-use softcbf_tests::alloc::{CountingAlloc, allocations};
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
+use softcbf_tests::alloc::allocations;
 
 fn temp_file(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("record-tests");

@@ -11,11 +11,8 @@ use softcbf::model::Model;
 use softcbf::qp::{QpSettings, QpStatus, SafetyQp};
 use softcbf::robot_file::load_robot;
 use softcbf_tests::TestRng;
-use softcbf_tests::alloc::{CountingAlloc, allocations};
+use softcbf_tests::alloc::allocations;
 use softcbf_tests::reference::stiffness_and_damping;
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
 
 fn paper_model() -> Model {
     Model::new(load_robot(None).expect("embedded robot")).expect("paper model")

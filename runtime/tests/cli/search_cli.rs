@@ -5,12 +5,10 @@
 //! declared box and sensor noise); bad options and mixed shards refused, naming what is
 //! wrong.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use common::{BIN, temp_dir};
+use crate::common::{BIN, temp_dir};
 
 fn softcbf(args: &[&str]) -> Output {
     Command::new(BIN).args(args).output().unwrap()

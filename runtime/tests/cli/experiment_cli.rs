@@ -4,14 +4,12 @@
 //! levels only as far as the barriers allow and stop before them, and bad options are
 //! refused before the port is opened.
 
-mod common;
-
 use std::path::Path;
 use std::process::Command;
 use std::sync::Mutex;
 use std::time::Duration;
 
-use common::{
+use crate::common::{
     BIN, Emulator, LOAD_FAULTS, finish_run, finish_run_within, robot, start_run, temp_dir,
 };
 

@@ -4,13 +4,11 @@
 //! numbers of that file, with the standard errors it reports and with the `[uncertainty]`
 //! it writes.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use common::{
+use crate::common::{
     BIN, Emulator, LOAD_FAULTS, finish_run_within, robot, start_run, temp_dir,
     unsafe_only_by_relaxed_ticks,
 };

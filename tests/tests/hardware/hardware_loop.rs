@@ -158,12 +158,12 @@ fn run_with_timeout(
     let map = TendonMap::with_hardware(&robot, hardware.clone()).unwrap();
     let model = Model::new(robot).unwrap();
     let mut settings = RunSettings::new(rate, hardware.set_point.clone());
-    // These runs are not about --min-rate (runtime/tests/hardware_cli.rs): a loaded machine
+    // These runs are not about --min-rate (runtime/tests/cli/hardware_cli.rs): a loaded machine
     // may tick slower than half the rate, and the loop goes on.
     settings.min_rate = Some(1.0);
     settings.duration = Some(duration);
     // 33 Hz also on a bus too slow for it (late replies): every tick then overruns. The
-    // refusal of such a rate is tested in runtime/tests/bus_check_cli.rs.
+    // refusal of such a rate is tested in runtime/tests/cli/bus_check_cli.rs.
     settings.rate_rule = RateRule::Overrun;
     let mut log = MemoryLog::default();
     let mut csv = out.map(|dir| softcbf::hardware::log::open(dir, &model, map.hardware()).unwrap());

@@ -2,7 +2,7 @@
 //! writes for `robots/paper-sim.toml`, byte-stable from run to run, and what the crate compiles.
 //!
 //! On an intended change of the generated code, update the checked-in copy with
-//! `SOFTCBF_UPDATE_GOLDEN=1 cargo test --release -p softcbf-tests --test golden`, or with
+//! `SOFTCBF_UPDATE_GOLDEN=1 cargo test --release -p softcbf-tests --test model golden::`, or with
 //! `cargo run -p softcbf-codegen -- --robot robots/paper-sim.toml --out generated/golden/paper_sim.rs`
 //! (run from the workspace root, so that the header names the robot file the same way).
 
@@ -56,7 +56,7 @@ fn first_difference(expected: &str, got: &str) -> Option<String> {
 fn how_to_update() -> String {
     format!(
         "if the change is intended, update the golden file with\n  \
-         {UPDATE_SWITCH}=1 cargo test --release -p softcbf-tests --test golden\nor\n  \
+         {UPDATE_SWITCH}=1 cargo test --release -p softcbf-tests --test model golden::\nor\n  \
          cargo run -p softcbf-codegen -- --robot {LABEL} --out {GOLDEN}\n\
          (from the workspace root) and review the diff before committing it"
     )

@@ -13,11 +13,8 @@ use softcbf_codegen::analytic::{MAX_ORDER, SWITCH_POINTS};
 use softcbf_codegen::registry;
 use softcbf_description::robot::{Robot, Structure};
 use softcbf_generated::{GeneratedModel, MODELS, interpreted};
-use softcbf_tests::alloc::{CountingAlloc, allocations};
+use softcbf_tests::alloc::allocations;
 use softcbf_tests::{TestRng, analytic::pcc_fs_fc_6};
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
 
 /// The structure of every compiled model: the shipped robot files, the registered ones and
 /// the benchmark structures, by key.

@@ -11,10 +11,7 @@ use softcbf::integrator::{
 };
 use softcbf_tests::integrators::{DenseW, DormandPrince, Jacobian, dormand_prince_tableau};
 
-use softcbf_tests::alloc::{CountingAlloc, allocations};
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
+use softcbf_tests::alloc::allocations;
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -1318,7 +1315,7 @@ fn no_allocation_per_integrate_call() {
 }
 
 // ---------------------------------------------------------------------------------------
-// Measurement (run with `cargo test --release --test integrator -- --ignored --nocapture`)
+// Measurement (run with `cargo test --release --test controller integrator:: -- --ignored --nocapture`)
 // ---------------------------------------------------------------------------------------
 
 #[test]

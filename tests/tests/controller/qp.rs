@@ -7,10 +7,7 @@ use rand::RngExt;
 use softcbf::qp::{QpSettings, QpSetupError, QpSolver, QpStatus, SafetyQp};
 
 use softcbf_tests::TestRng;
-use softcbf_tests::alloc::{CountingAlloc, allocations};
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
+use softcbf_tests::alloc::allocations;
 
 /// One random safety-QP instance.
 #[derive(Clone, Debug)]

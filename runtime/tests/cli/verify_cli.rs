@@ -3,13 +3,11 @@
 //! `report.json` byte for byte; a replayed run reproduces its row; bad shards and bad
 //! tables are refused naming what is wrong.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{BIN, lines_of, temp_dir, wait_for};
+use crate::common::{BIN, lines_of, temp_dir, wait_for};
 use softcbf::verify::report::{read_report, report_json};
 
 fn softcbf(args: &[&str]) -> Output {

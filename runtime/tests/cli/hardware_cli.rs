@@ -6,8 +6,6 @@
 //!
 //! The emulator steps its plant in real time: run optimized (`cargo test --release`).
 
-mod common;
-
 use std::io::{Read, Write};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -15,7 +13,7 @@ use std::sync::Mutex;
 use std::thread;
 use std::time::Duration;
 
-use common::*;
+use crate::common::*;
 
 /// One emulator and its runs at a time: the loop's timing is part of what is checked.
 static SERIAL: Mutex<()> = Mutex::new(());
