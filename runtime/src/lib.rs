@@ -61,12 +61,14 @@ pub use softcbf_core::{
     spatial, verdict,
 };
 
+// The wings of their own: the figures and the Dynamixel codec, under their old names too.
+pub use softcbf_figures::plot;
+pub use softcbf_protocol as protocol;
+
 pub mod cli;
 pub mod hardware;
 pub mod identify;
 pub mod inspect;
 pub mod output;
-pub mod plot;
-pub mod protocol;
 pub mod replot;
 pub mod verify;

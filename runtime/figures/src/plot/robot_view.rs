@@ -18,9 +18,9 @@
 //! the lowest barrier of any kind. Only the snapshot rows of a record are evaluated.
 //!
 //! ```no_run
-//! # use softcbf::{model::Model, record::Record};
-//! # fn demo(model: &Model, filtered: &Record, plain: &Record) -> Result<(), softcbf::plot::PlotError> {
-//! use softcbf::plot::robot_view::{ViewOptions, draw_robot_views};
+//! # use softcbf_core::{model::Model, record::Record};
+//! # fn demo(model: &Model, filtered: &Record, plain: &Record) -> Result<(), softcbf_figures::plot::PlotError> {
+//! use softcbf_figures::plot::robot_view::{ViewOptions, draw_robot_views};
 //! let panels = [("safety filter (HOCBF-QP)", filtered), ("PD+ only", plain)];
 //! let files = draw_robot_views("out".as_ref(), "robot", model, &panels, &ViewOptions::default())?;
 //! assert_eq!(files.len(), 2); // out/robot.png, out/robot.svg

@@ -28,7 +28,7 @@ const NOTE_COLOUR: RGBColor = RGBColor(204, 30, 30);
 /// Shade of the time spans with an invalid state.
 const INVALID_SHADE: RGBColor = RGBColor(253, 226, 226);
 
-pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+pub type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 type Area<DB> = DrawingArea<DB, Shift>;
 
 /// What each row of coordinate panels shows: caption and value-axis label.
@@ -104,7 +104,7 @@ fn tick_label(v: f64, decimals: usize) -> String {
 }
 
 /// Draws `points` as a line of `style`, `width` pixels wide.
-pub(crate) fn draw_line<DB: DrawingBackend>(
+pub fn draw_line<DB: DrawingBackend>(
     chart: &mut Chart<DB>,
     points: Vec<(f64, f64)>,
     style: LineStyle,

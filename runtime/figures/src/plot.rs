@@ -19,9 +19,9 @@
 //! SVG small. The PNG is rendered into memory and encoded with the `png` crate.
 //!
 //! ```no_run
-//! # use softcbf::record::Record;
-//! # use softcbf::plot::{FigureOptions, write_figures};
-//! # fn demo(filtered: &Record, plain: &Record) -> Result<(), softcbf::plot::PlotError> {
+//! # use softcbf_core::record::Record;
+//! # use softcbf_figures::plot::{FigureOptions, write_figures};
+//! # fn demo(filtered: &Record, plain: &Record) -> Result<(), softcbf_figures::plot::PlotError> {
 //! let set_point = [0.08, 0.0, -0.05, 0.0, -0.06, -0.07];
 //! let panels = [("safety filter (HOCBF-QP)", filtered), ("PD+ only", plain)];
 //! let files = write_figures("out".as_ref(), &panels, &set_point, &FigureOptions::default())?;
@@ -32,7 +32,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-pub(crate) mod draw;
+pub mod draw;
 pub mod invalid;
 pub mod robot_view;
 mod series;
@@ -195,7 +195,7 @@ pub struct FigureOptions<'a> {
 }
 
 /// Registers the embedded fonts with plotters, once per process.
-pub(crate) fn register_fonts() -> Result<(), PlotError> {
+pub fn register_fonts() -> Result<(), PlotError> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         let regular = register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok();
@@ -842,7 +842,7 @@ pub fn modules_from_labels(labels: &[String]) -> Option<Vec<usize>> {
 }
 
 /// Writes 8-bit RGB `pixels` (row-major, `size` = width × height) as a PNG file.
-pub(crate) fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String> {
+pub fn write_png(path: &Path, pixels: &[u8], size: (u32, u32)) -> Result<(), String> {
     let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
     encoder.set_color(png::ColorType::Rgb);

@@ -22,7 +22,7 @@
 //!   a reply timeout and error counters ([`BusCounters`]).
 //!
 //! ```
-//! use softcbf::protocol::{Decoder, Instruction, encode_ping};
+//! use softcbf_protocol::{Decoder, Instruction, encode_ping};
 //!
 //! // The e-Manual's PING example for ID 1 ...
 //! let mut out = Vec::new();
