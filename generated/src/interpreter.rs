@@ -6,7 +6,7 @@
 //! function and leaks the result once per structure key, so later calls return the same
 //! model. Each call copies constants and inputs into a thread-local buffer (grown once per
 //! thread, never per call) and runs the steps the emitted code would: the same operations
-//! in the same order, so it agrees with the compiled model to the bit (tests/tests/interpreter.rs).
+//! in the same order, so it agrees with the compiled model to the bit (tests/tests/model/interpreter.rs).
 
 use std::cell::RefCell;
 use std::sync::Mutex;

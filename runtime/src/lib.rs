@@ -54,33 +54,21 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-pub mod barrier_info;
+// The controller core, re-exported so that `softcbf::control` and the rest keep their paths.
+pub use softcbf_core::{
+    barrier_info, control, dynamics, enclosure, exit, hardware_description, hold, integrator,
+    linalg, model, noise, plant, qp, record, reference, robot_file, scenario, settings, sim,
+    spatial, verdict,
+};
+
+// The wings of their own: the figures and the Dynamixel codec, under their old names too.
+pub use softcbf_figures::plot;
+pub use softcbf_protocol as protocol;
+
 pub mod cli;
-pub mod control;
-pub mod dynamics;
-pub mod enclosure;
-pub mod exit;
 pub mod hardware;
-pub mod hardware_description;
-pub mod hold;
 pub mod identify;
 pub mod inspect;
-pub mod integrator;
-pub mod linalg;
-pub mod model;
-pub mod noise;
 pub mod output;
-pub mod plant;
-pub mod plot;
-pub mod protocol;
-pub mod qp;
-pub mod record;
-pub mod reference;
 pub mod replot;
-pub mod robot_file;
-pub mod scenario;
-pub mod settings;
-pub mod sim;
-pub mod spatial;
-pub mod verdict;
 pub mod verify;

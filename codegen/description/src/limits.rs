@@ -6,7 +6,7 @@
 //! and field, the command line adds the option's name. The ranges are physical: a bound
 //! says where a value stops describing a robot (a reply that takes more than a second, a
 //! module longer than 10 m), not where the arithmetic happens to break, and every value
-//! inside them leaves the model's arithmetic finite (`tests/tests/descriptions.rs`).
+//! inside them leaves the model's arithmetic finite (`tests/tests/model/descriptions.rs`).
 //!
 //! The state domain of the model (`q`, `q̇`) is bounded in the same spirit by
 //! [`crate::domain`]; the limits every module has where its robot file writes none, which
@@ -218,7 +218,7 @@ pub const DEFAULT_MAX_BEND_RAD: f64 = 1.25 * std::f64::consts::PI;
 /// on 100 draws of `scenarios/verify-paper.toml`, gains of 30 1/s leave the QP relaxed in
 /// 24 runs and stop none, 50 1/s relax it in 97 and stop 4 (the plant integrated into a
 /// singular mass matrix). 30 1/s is the measured compromise (docs/model.md §3); the rows
-/// never bind in the paper's simulation (`tests/tests/domain_limits.rs`).
+/// never bind in the paper's simulation (`tests/tests/model/domain_limits.rs`).
 pub const DOMAIN_BARRIER_GAINS: [f64; 2] = [30.0, 30.0];
 
 /// The domain's default elongation limits `[δL_min, δL_max]` \[m\] of a module of rest

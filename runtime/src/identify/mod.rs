@@ -30,7 +30,7 @@
 //! 4 % errors, quadrature of `k″` over too few points), yet short against the motion, so
 //! that `M`, `h` vary little across a window. Measured on exact synthetic logs of the
 //! example robot (a static and a multisine experiment; `accuracy_against_rate_and_half_width`
-//! in tests/tests/identify.rs): at 100 and 200 Hz every number within 0.3 % for T from
+//! in tests/tests/hardware/identify.rs): at 100 and 200 Hz every number within 0.3 % for T from
 //! 0.06 to 0.2 s, at 50 Hz within 0.9 %; at 33 Hz all within 0.9 % but module 2's bending
 //! damping, off by 2–8 % depending on where the readings fall between command landings:
 //! the tension steps excite that light module's damped modes (time constants near 15 ms)

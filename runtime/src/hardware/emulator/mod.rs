@@ -620,3 +620,23 @@ pub fn serve<P: Port>(
     }
     Ok(device.into_log())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::ScenarioFile;
+
+    #[test]
+    fn a_scenarios_sensor_noise_is_the_emulators_noise() {
+        // The emulator's readings take the one sensor noise type a scenario reads.
+        let text = "[sensor_noise]\nq = 1e-4\nqd = 2e-3\nseed = 5\n";
+        let file = ScenarioFile::parse(text, std::path::Path::new("noise.toml")).unwrap();
+        let model = crate::model::Model::new(crate::robot_file::load_robot(None).unwrap()).unwrap();
+        let noise = file.resolve(&model).unwrap().sensor_noise.unwrap();
+        let settings = EmulatorSettings {
+            noise,
+            ..EmulatorSettings::new(1_000_000)
+        };
+        assert!(settings.noise.is_on());
+    }
+}
