@@ -67,6 +67,7 @@ pub mod identify;
 pub mod inspect;
 pub mod integrator;
 pub mod linalg;
+pub mod mcap_log;
 pub mod model;
 pub mod noise;
 pub mod output;
