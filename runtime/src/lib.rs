@@ -69,6 +69,7 @@ pub mod cli;
 pub mod hardware;
 pub mod identify;
 pub mod inspect;
+pub mod mcap_log;
 pub mod output;
 pub mod replot;
 pub mod verify;

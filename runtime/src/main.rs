@@ -97,6 +97,10 @@ struct SimulateArgs {
     /// Also write an animation of the run, `robot.gif` (about a second more).
     #[arg(long)]
     animate: bool,
+    /// Also write the run as an MCAP log, `run.mcap` (JSON channels for Foxglove,
+    /// PlotJuggler, Rerun; README.md, "MCAP logs").
+    #[arg(long)]
+    mcap: bool,
     /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
     #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
     barrier_threshold: f64,
@@ -282,8 +286,14 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     } else {
         None
     };
-    let written = write_outputs(out, &main, comparison.as_ref(), &model, args.animate)
+    let mut written = write_outputs(out, &main, comparison.as_ref(), &model, args.animate)
         .map_err(|e| e.to_string())?;
+    if args.mcap {
+        let path = out.join(softcbf::mcap_log::FILE_NAME);
+        let summary = serde_json::to_value(&main.summary).map_err(|e| e.to_string())?;
+        softcbf::mcap_log::write_mcap(&path, &main, comparison.as_ref(), &summary)?;
+        written.push(path);
+    }
     console.say(&one_line(&main.summary));
     if let Some(pd) = &comparison {
         console.say(&one_line(&pd.summary));

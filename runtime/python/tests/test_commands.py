@@ -26,6 +26,30 @@ def test_verify_writes_what_the_command_writes(root, softcbf_bin, tmp_path):
     assert result.report["runs"] == 8
 
 
+def test_shards_and_their_merge_are_the_batch(root, softcbf_bin, tmp_path):
+    scenario = root / "scenarios" / "verify-paper.toml"
+    args = dict(runs=6, seed=3, duration=0.2)
+    shards = [softcbf.verify(scenario, tmp_path / f"shard {k}", shard=f"{k}/2", threads=1, **args)
+              for k in range(2)]
+    # A shard has rows, no report: the report needs every shard.
+    assert [shard.report for shard in shards] == [None, None]
+    assert [shard.runs["run"].tolist() for shard in shards] == [[0, 1, 2], [3, 4, 5]]
+    assert all(shard.status in (0, 3) for shard in shards)
+
+    merged = softcbf.verify_merge([shard.out for shard in reversed(shards)], tmp_path / "merged")
+    cli = run_cli(softcbf_bin, "verify", "--scenario", scenario, "--out", tmp_path / "cli",
+                  "--runs", 6, "--seed", 3, "--duration", 0.2, check=False)
+    assert merged.status == cli.returncode
+    for name in ["runs.csv", "report.json"]:
+        assert (tmp_path / "merged" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
+    assert merged.report["runs"] == 6 and merged.runs["run"].tolist() == list(range(6))
+
+    with pytest.raises(ValueError, match="run"):  # one shard of two is not the batch
+        softcbf.verify_merge([shards[0].out], tmp_path / "half")
+    with pytest.raises(TypeError, match="list of shard directories"):
+        softcbf.verify_merge(tmp_path / "shard 0", tmp_path / "half")
+
+
 def test_verify_errors_are_exceptions(root, tmp_path):
     with pytest.raises(ValueError, match="--runs"):
         softcbf.verify(root / "scenarios" / "verify-paper.toml", tmp_path, runs=0)

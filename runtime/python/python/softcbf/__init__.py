@@ -55,6 +55,7 @@ __all__ = [
     "simulate",
     "generated_models",
     "verify",
+    "verify_merge",
 ]
 
 #: Every status `Controller.tick` returns. ``"qp_failed"`` and ``"invalid_state"`` come
@@ -66,14 +67,18 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 @dataclass(frozen=True)
 class VerifyResult:
-    """A finished ``verify`` batch: its exit status, report and one row per run."""
+    """A finished ``verify`` batch, shard or merge: its exit status, report and one row per
+    run."""
 
     #: 0 when every run is safe, 3 when some run is unsafe (as the command's exit status).
     status: int
-    #: The output directory (runs.csv, report.json, timing.csv, figures).
+    #: The output directory (runs.csv, shard.json, timing.csv; a whole batch's also
+    #: report.json and figures).
     out: Path
     #: ``report.json``: counts, quantiles and the worst runs with their replay commands.
-    report: Dict[str, Any]
+    #: ``None`` for a shard (``shard="K/M"``, M > 1): the report needs every shard, and
+    #: ``verify_merge`` of the shards' directories writes it.
+    report: Optional[Dict[str, Any]]
     #: ``runs.csv`` by column: numbers as numpy arrays (int64/uint64 or float64), labels
     #: as lists of strings.
     runs: Dict[str, Any]
@@ -143,10 +148,29 @@ def verify(
                         ("--threads", threads), ("--duration", duration)):
         if value is not None:
             args += [flag, str(value)]
-    status = _run_verify(args)
-    out = Path(out)
-    with open(out / "report.json", encoding="utf-8") as handle:
-        report = json.load(handle)
+    return _verify_result(_run_verify(args), Path(out))
+
+
+def verify_merge(shards: Sequence[PathLike], out: PathLike) -> VerifyResult:
+    """Runs ``softcbf verify merge``: checks that the shard directories ``shards`` hold one
+    batch's runs, each exactly once, and writes into ``out`` the ``runs.csv``,
+    ``report.json`` and figures one process would have written (the same bytes). Returns
+    the whole batch's result; shards that do not make one batch raise ``ValueError``."""
+    if isinstance(shards, (str, os.PathLike)):
+        raise TypeError("verify_merge takes a list of shard directories, not one path")
+    args = ["merge", *(os.fspath(shard) for shard in shards), "--out", os.fspath(out)]
+    return _verify_result(_run_verify(args), Path(out))
+
+
+def _verify_result(status: int, out: Path) -> VerifyResult:
+    """The result in ``out``: its report when ``shard.json`` says the directory holds the
+    whole batch (a shard's directory may keep a report.json of an earlier batch)."""
+    with open(out / "shard.json", encoding="utf-8") as handle:
+        slices = json.load(handle)["shard"][1]
+    report = None
+    if slices == 1:
+        with open(out / "report.json", encoding="utf-8") as handle:
+            report = json.load(handle)
     return VerifyResult(status=status, out=out, report=report, runs=_read_runs(out / "runs.csv"))
 
 
