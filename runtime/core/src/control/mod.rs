@@ -1451,7 +1451,12 @@ pub(super) fn sampled_filter(
     let mut best_gave_way = GaveWay::Nothing;
     for pass in 1..passes + CHECK_PASSES {
         // A relaxed problem misses its rows by design: no check.
-        let checking = passes > 1 && pass >= passes && status == TickStatus::Filtered;
+        // A loop with a deadline (the hardware loop) keeps the settings' passes only: the
+        // check's further passes may take several integrations each.
+        let checking = passes > 1
+            && pass >= passes
+            && status == TickStatus::Filtered
+            && controller.compute_budget.is_infinite();
         if status.is_fallback() || (pass >= passes && !checking) {
             break;
         }
@@ -1465,7 +1470,9 @@ pub(super) fn sampled_filter(
             sampled.solved_rows[..written * nq].copy_from_slice(&controller.rows[..written * nq]);
             sampled.solved_rhs[..written].copy_from_slice(&controller.rhs[..written]);
         }
-        if let Some(robust) = sampled.robust.as_mut() {
+        // The robust margin at the settings' passes' commands; a check keeps it, so that
+        // the rows it measures against do not move with the command.
+        if let Some(robust) = sampled.robust.as_mut().filter(|_| !checking) {
             let computed = robust_margin(
                 model,
                 robust,
