@@ -792,6 +792,42 @@ fn prediction_tolerances() -> Tolerances {
 }
 
 impl SampledWorkspace {
+    /// Integrates the plant (its command set in `plant`) from `*time` to the hold's sample
+    /// `j`, moving `*time` there, and evaluates the barrier terms at the state reached
+    /// (`point`, `values`, `jacobian`). `false` where the integration fails, the state
+    /// leaves the model's domain or a barrier term is not finite.
+    fn advance(&mut self, model: &Model, time: &mut f64, j: usize) -> bool {
+        let nq = self.point.len();
+        let next = self.prediction.time(j);
+        let mut system = PlantSystem {
+            model,
+            workspace: &mut self.plant,
+        };
+        if self
+            .integrator
+            .integrate(&mut system, *time, next, &mut self.state)
+            .is_err()
+        {
+            return false;
+        }
+        *time = next;
+        self.point.copy_from_slice(&self.state[..nq]);
+        if softcbf_description::domain::state_problem(&model.robot, &self.point, &self.zero)
+            .is_some()
+        {
+            return false;
+        }
+        model.generated.barrier_terms(
+            &model.params,
+            &self.point,
+            &self.zero,
+            &mut self.values,
+            &mut self.jacobian,
+            &mut self.jdot_qd,
+        );
+        all_finite(&self.values) && all_finite(&self.jacobian)
+    }
+
     fn new(model: &Model, settings: &SampledSettings) -> SampledWorkspace {
         let (nq, nb) = (model.nq(), model.nb());
         let samples = settings.samples + settings.early;
@@ -1504,40 +1540,7 @@ pub(super) fn sampled_filter(
             // The motion under the previous command, integrated to t_j; where the
             // integration fails or leaves the model's domain, the rows of the previous pass
             // stay for this sample and every later one.
-            let next = sampled.prediction.time(j);
-            let mut system = PlantSystem {
-                model,
-                workspace: &mut sampled.plant,
-            };
-            if sampled
-                .integrator
-                .integrate(&mut system, time, next, &mut sampled.state)
-                .is_err()
-            {
-                miss = f64::INFINITY;
-                break;
-            }
-            time = next;
-            sampled.point.copy_from_slice(&sampled.state[..nq]);
-            if softcbf_description::domain::state_problem(
-                &model.robot,
-                &sampled.point,
-                &sampled.zero,
-            )
-            .is_some()
-            {
-                miss = f64::INFINITY;
-                break;
-            }
-            model.generated.barrier_terms(
-                &model.params,
-                &sampled.point,
-                &sampled.zero,
-                &mut sampled.values,
-                &mut sampled.jacobian,
-                &mut sampled.jdot_qd,
-            );
-            if !(all_finite(&sampled.values) && all_finite(&sampled.jacobian)) {
+            if !sampled.advance(model, &mut time, j) {
                 miss = f64::INFINITY;
                 break;
             }
@@ -1644,38 +1647,7 @@ fn sensitivity_rows(model: &Model, controller: &mut Controller, m: usize) {
         sampled.integrator.reset();
         let mut time = 0.0;
         for j in 0..m {
-            let next = sampled.prediction.time(j);
-            let mut system = PlantSystem {
-                model,
-                workspace: &mut sampled.plant,
-            };
-            if sampled
-                .integrator
-                .integrate(&mut system, time, next, &mut sampled.state)
-                .is_err()
-            {
-                break;
-            }
-            time = next;
-            sampled.point.copy_from_slice(&sampled.state[..nq]);
-            if softcbf_description::domain::state_problem(
-                &model.robot,
-                &sampled.point,
-                &sampled.zero,
-            )
-            .is_some()
-            {
-                break;
-            }
-            model.generated.barrier_terms(
-                &model.params,
-                &sampled.point,
-                &sampled.zero,
-                &mut sampled.values,
-                &mut sampled.jacobian,
-                &mut sampled.jdot_qd,
-            );
-            if !all_finite(&sampled.values) {
+            if !sampled.advance(model, &mut time, j) {
                 break;
             }
             for k in 0..nb {
