@@ -169,8 +169,10 @@ fn the_walk_through_finds_the_true_robot() {
         );
     }
     // The identified file's [uncertainty] comes from these standard errors: it covers the
-    // true plant around the written numbers; stiffness far narrower than the input's ±10 %;
-    // damping is the least certain (3 σ of the least certain βθ, 8 % to 18 % in runs here,
+    // true plant around the written numbers; stiffness at most half the input's ±10 % (3 σ
+    // of module 2's κθ: 1.5 % to 1.9 % on an idle machine, 3.3 % in one run beside the rest
+    // of this suite, the readings' noise part growing with the landing times' jitter);
+    // damping is the least certain (3 σ of the least certain βθ, 8 % to 21 % in runs here,
     // its timing part growing with the machine's load), so only an absurd width fails.
     let declared = Robot::load(&identified).unwrap().uncertainty;
     println!(
@@ -178,7 +180,7 @@ fn the_walk_through_finds_the_true_robot() {
         declared.stiffness, declared.damping, declared.mass, declared.force
     );
     assert!(
-        declared.stiffness < 0.03 && declared.damping < 0.3,
+        declared.stiffness < 0.05 && declared.damping < 0.3,
         "{declared:?}"
     );
     for (module, (t, f)) in truth.iter().zip(&found).enumerate() {
