@@ -509,6 +509,8 @@ struct RobustMargin {
     /// groups`), and the extra approach of the plant last predicted (`rows`).
     choice: Vec<usize>,
     approach: Vec<f64>,
+    /// The unmodelled force's share of each row's margin (`rows`).
+    force_share: Vec<f64>,
     /// The plant with every module's mass off at once, for each combination of ends (bit `i`
     /// set: module `i` heavier); empty without a mass box.
     mass_corners: Vec<Model>,
@@ -617,6 +619,7 @@ impl RobustMargin {
         Ok(RobustMargin {
             choice: vec![0; rows * groups],
             approach: vec![0.0; rows],
+            force_share: vec![0.0; rows],
             mass_corners,
             groups,
             product_allowance: 1.0 / (1.0 - u.stiffness.max(u.damping).max(u.mass).min(0.5)),
@@ -708,6 +711,7 @@ fn robust_margin(
         &mut robust.nominal_velocity,
     );
     robust.margin.fill(0.0);
+    robust.force_share.fill(0.0);
     if robust.force > 0.0 {
         for j in 0..m {
             let forced = robust.prediction.forced(j);
@@ -721,6 +725,7 @@ fn robust_margin(
                             .abs()
                     })
                     .sum();
+                robust.force_share[j * nb + k] = robust.force * reach;
                 robust.margin[j * nb + k] += robust.force * reach;
             }
         }
@@ -904,8 +909,14 @@ fn combined_plant(
     if !plant_approach(robust, horizon, guess, jacobian, gains, scale, qd) {
         return false;
     }
-    for (margin, &approach) in robust.margin.iter_mut().zip(&robust.approach) {
-        *margin = margin.max(approach);
+    // The unmodelled force acts on the combined plant too.
+    for ((margin, &approach), &force) in robust
+        .margin
+        .iter_mut()
+        .zip(&robust.approach)
+        .zip(&robust.force_share)
+    {
+        *margin = margin.max(approach + force);
     }
     true
 }
