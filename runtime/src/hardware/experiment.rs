@@ -29,10 +29,10 @@
 //! at rest, or the dynamic experiment's first reading) to the design's largest deviation,
 //! stays above [`ExperimentSettings::growth_distance`]; beyond the level measured the drop
 //! is taken to grow faster than linearly, as the level to [`DROP_GROWTH_POWER`]
-//! (`beyond_measured`). The static experiment
-//! measures its levels on rounds of the three single-tendon sets (the sets that bend and
-//! compress a module most), then runs the other sets at the level chosen; the dynamic one
-//! reconsiders its level every [`ExperimentSettings::check_window`].
+//! (`beyond_measured`). The static experiment measures its levels on rounds of the three
+//! single-tendon sets (the sets that bend and compress a module most), then runs the other
+//! sets at the level chosen; the dynamic one reconsiders its level every
+//! [`ExperimentSettings::check_window`].
 //!
 //! **Guard.** Each tick the run loop gives [`Experiment::observe`] the barriers at the
 //! state read and where the robot is heading by the next command; when one is below
@@ -1064,8 +1064,9 @@ impl Experiment {
     /// newton of deviation (the most seen), and the next level is the largest, at most
     /// `growth` times this one and at most the full level, at which every barrier,
     /// extrapolated to the design's largest deviation (linearly within the level measured,
-    /// faster beyond: [`beyond_measured`]), stays above the growth distance. Records the [`Level`]; stops the experiment when no level above zero
-    /// qualifies. Allocates nothing (the levels' room is reserved).
+    /// faster beyond: [`beyond_measured`]), stays above the growth distance. Records the
+    /// [`Level`]; stops the experiment when no level above zero qualifies. Allocates nothing
+    /// (the levels' room is reserved).
     fn end_window(&mut self) {
         let s = &self.settings;
         let mut lowest = f64::INFINITY;
