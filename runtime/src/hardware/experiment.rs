@@ -590,7 +590,7 @@ impl ExperimentStop {
 }
 
 /// How fast a barrier's drop may grow with the level beyond the levels measured: as the
-/// level to this power ([`beyond_measured`]). The example robot against
+/// level to this power (`beyond_measured`). The example robot against
 /// `calibration-true.toml` shows 1.2 to 1.3 from a level to twice it (module 1's
 /// elongation: the tendons' moment arms and the weight's lever grow with the bend, and a
 /// step's overshoot adds to the rest state); a linear extrapolation then missed by up to
