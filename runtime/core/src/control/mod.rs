@@ -653,6 +653,26 @@ fn robust_error(reason: String) -> ControllerError {
     }
 }
 
+/// What a tick's robust margin is computed from ([`robust_margin`]): the model, the
+/// horizon \[s\] (the hold plus the age of a predicted state), the nominal linear model's
+/// stiffness `K + ∂G/∂q` and offset `n₀ + K q₀` (`nq × nq`, `nq`) with `h` frozen, the
+/// mass-matrix inverse (`nq × nq`), the barriers' Jacobian (`nb × nq`) and class-K gains
+/// with their scale, the command `guess` (`nq`, N) and the tick's state `(q, q̇)`.
+#[derive(Clone, Copy)]
+struct MarginInputs<'a> {
+    model: &'a Model,
+    horizon: f64,
+    nominal_stiffness: &'a [f64],
+    nominal_offset: &'a [f64],
+    inverse_mass: &'a [f64],
+    jacobian: &'a [f64],
+    gains: &'a [[f64; 2]],
+    scale: f64,
+    guess: &'a [f64],
+    q: &'a [f64],
+    qd: &'a [f64],
+}
+
 /// Fills `robust.margin` for the command `guess`: for each perturbed plant
 /// ([`RobustMargin::new`]: a module's bending or axial stiffness and damping at a corner of
 /// their square, or its mass at an end), the extra approach `−J_k (e_v(t_j) − e(t_j))` of
@@ -664,23 +684,24 @@ fn robust_error(reason: String) -> ControllerError {
 /// those of the linearized dynamics (docs/model.md §5), over `horizon`: the hold, plus the
 /// age of a state predicted from an older reading ([`Controller::set_margin_age`]), sampled
 /// like the hold. Allocates nothing.
-#[allow(clippy::too_many_arguments)]
 fn robust_margin(
-    model: &Model,
     robust: &mut RobustMargin,
-    horizon: f64,
-    nominal_stiffness: &[f64],
-    nominal_offset: &[f64],
-    inverse_mass: &[f64],
-    jacobian: &[f64],
-    gains: &[[f64; 2]],
-    scale: f64,
-    guess: &[f64],
-    q: &[f64],
-    qd: &[f64],
+    inputs: &MarginInputs<'_>,
     rows: &[f64],
     rhs: &[f64],
 ) -> bool {
+    let MarginInputs {
+        model,
+        horizon,
+        nominal_stiffness,
+        nominal_offset,
+        inverse_mass,
+        jacobian,
+        guess,
+        q,
+        qd,
+        ..
+    } = *inputs;
     let nq = q.len();
     let nb = jacobian.len() / nq.max(1);
     let m = robust.prediction.samples();
@@ -734,38 +755,8 @@ fn robust_margin(
     // no allocation).
     let perturbations = std::mem::take(&mut robust.perturbations);
     let mass_corners = std::mem::take(&mut robust.mass_corners);
-    let done = group_margins(
-        robust,
-        &perturbations,
-        model,
-        horizon,
-        nominal_stiffness,
-        nominal_offset,
-        inverse_mass,
-        jacobian,
-        gains,
-        scale,
-        guess,
-        q,
-        qd,
-    ) && combined_plant(
-        robust,
-        &perturbations,
-        &mass_corners,
-        model,
-        horizon,
-        nominal_stiffness,
-        nominal_offset,
-        inverse_mass,
-        jacobian,
-        gains,
-        scale,
-        guess,
-        q,
-        qd,
-        rows,
-        rhs,
-    );
+    let done = group_margins(robust, &perturbations, inputs)
+        && combined_plant(robust, &perturbations, &mass_corners, inputs, rows, rhs);
     robust.perturbations = perturbations;
     robust.mass_corners = mass_corners;
     done && robust.margin.iter().all(|v| v.is_finite())
@@ -774,22 +765,24 @@ fn robust_margin(
 /// Each group's worst extra approach per row, summed over the groups into `robust.margin`
 /// (which holds the force's share already); remembers each row's worst member of each
 /// group in `robust.choice`. `false` where a prediction fails.
-#[allow(clippy::too_many_arguments)]
 fn group_margins(
     robust: &mut RobustMargin,
     perturbations: &[Perturbation],
-    model: &Model,
-    horizon: f64,
-    nominal_stiffness: &[f64],
-    nominal_offset: &[f64],
-    inverse_mass: &[f64],
-    jacobian: &[f64],
-    gains: &[[f64; 2]],
-    scale: f64,
-    guess: &[f64],
-    q: &[f64],
-    qd: &[f64],
+    inputs: &MarginInputs<'_>,
 ) -> bool {
+    let MarginInputs {
+        model,
+        horizon,
+        nominal_stiffness,
+        nominal_offset,
+        inverse_mass,
+        jacobian,
+        gains,
+        scale,
+        guess,
+        q,
+        qd,
+    } = *inputs;
     let groups = robust.groups;
     let mut group = 0;
     for (v, perturbation) in perturbations.iter().enumerate() {
@@ -840,25 +833,27 @@ fn group_margins(
 /// guess meets with the least room (`rows · guess − rhs − margin`, the rows the guess was
 /// solved for) is predicted as well, with all its numbers off at once, and every row's
 /// margin is at least its extra approach on that plant. `false` where the prediction fails.
-#[allow(clippy::too_many_arguments)]
 fn combined_plant(
     robust: &mut RobustMargin,
     perturbations: &[Perturbation],
     mass_corners: &[Model],
-    model: &Model,
-    horizon: f64,
-    nominal_stiffness: &[f64],
-    nominal_offset: &[f64],
-    inverse_mass: &[f64],
-    jacobian: &[f64],
-    gains: &[[f64; 2]],
-    scale: f64,
-    guess: &[f64],
-    q: &[f64],
-    qd: &[f64],
+    inputs: &MarginInputs<'_>,
     rows: &[f64],
     rhs: &[f64],
 ) -> bool {
+    let MarginInputs {
+        model,
+        horizon,
+        nominal_stiffness,
+        nominal_offset,
+        inverse_mass,
+        jacobian,
+        gains,
+        scale,
+        guess,
+        q,
+        qd,
+    } = *inputs;
     let (nq, groups) = (q.len(), robust.groups);
     if groups < 2 {
         return true;
@@ -1780,22 +1775,20 @@ pub(super) fn sampled_filter(
         // The robust margin at the settings' passes' commands; a check keeps it, so that
         // the rows it measures against do not move with the command.
         if let Some(robust) = sampled.robust.as_mut().filter(|_| !checking) {
-            let computed = robust_margin(
+            let inputs = MarginInputs {
                 model,
-                robust,
-                controller.settings.hold + controller.margin_age,
-                &sampled.gravity_stiffness,
-                &sampled.plain_offset,
-                &controller.inverse_mass,
-                controller.barrier_terms.jacobian(),
-                &controller.barrier_gains,
+                horizon: controller.settings.hold + controller.margin_age,
+                nominal_stiffness: &sampled.gravity_stiffness,
+                nominal_offset: &sampled.plain_offset,
+                inverse_mass: &controller.inverse_mass,
+                jacobian: controller.barrier_terms.jacobian(),
+                gains: &controller.barrier_gains,
                 scale,
-                &sampled.guess,
+                guess: &sampled.guess,
                 q,
                 qd,
-                &controller.rows,
-                &controller.rhs,
-            );
+            };
+            let computed = robust_margin(robust, &inputs, &controller.rows, &controller.rhs);
             if !computed {
                 return controller.fallback(InvalidState::NonFiniteModel);
             }
