@@ -28,6 +28,7 @@ pub(crate) struct LimitsTable {
     bend_margin_deg: Option<Spanned<f64>>,
     p1: Option<Spanned<f64>>,
     p2: Option<Spanned<f64>>,
+    elongation_rate: Option<Spanned<f64>>,
 }
 
 /// One `[[obstacle]]` table as serde reads it.
@@ -70,6 +71,7 @@ struct WrittenLimits {
     max_bend: Option<At<f64>>,
     bend_margin: Option<At<f64>>,
     gains: [Option<f64>; 2],
+    elongation_rate: Option<At<f64>>,
 }
 
 impl Checker<'_> {
@@ -134,6 +136,12 @@ impl Checker<'_> {
             "bend_margin_deg",
             &limits::BEND_MARGIN_DEG,
             radians,
+        )?;
+        written.elongation_rate = number(
+            &table.elongation_rate,
+            "elongation_rate",
+            &limits::ELONGATION_RATE_M_S,
+            1.0,
         )?;
         for (slot, value, name) in [(0, &table.p1, "p1"), (1, &table.p2, "p2")] {
             if let Some(v) = value {
@@ -268,6 +276,11 @@ impl Checker<'_> {
                     elongation: elongation.is_some(),
                     bend: max_bend.is_some(),
                 },
+                elongation_rate: own
+                    .elongation_rate
+                    .as_ref()
+                    .or(top.elongation_rate.as_ref())
+                    .map_or(domain.elongation_rate, |r| r.value),
             });
         }
         Ok(out)
@@ -569,12 +582,23 @@ mod tests {
                     elongation: true,
                     bend: true
                 },
+                elongation_rate: 1.0,
             }
         );
         assert_eq!(robot.limits[1].elongation, [-0.02, 0.02]);
         assert_eq!(robot.limits[1].elongation_margin, 0.001);
         assert!((robot.limits[1].bend_margin - right / 9.0).abs() < 1e-15);
         assert_eq!(robot.limits[1].max_bend, right);
+        // The rate: the default ten rest lengths per second, a table's own over the top's.
+        let rates = parse(
+            "[limits]\nelongation_rate = 0.5\n[[module]]\nrest_length = 0.2\n\
+             [[module]]\n[module.limits]\nelongation_rate = 0.25\n",
+        )
+        .unwrap();
+        assert_eq!(rates.limits[0].elongation_rate, 0.5);
+        assert_eq!(rates.limits[1].elongation_rate, 0.25);
+        let plain = parse("[[module]]\nrest_length = 0.2\n").unwrap();
+        assert_eq!(plain.limits[0].elongation_rate, 2.0);
         // No tables: every module keeps the domain's limits, and the same structure (limits
         // are numbers).
         let plain = parse("modules = 2").unwrap();
@@ -725,6 +749,19 @@ mod tests {
             "must be > 0 and ≤ 225°, got 226",
         );
         assert!(parse("modules = 1\n[limits]\nmax_bend_deg = 225\n").is_ok());
+        // The elongation rate: above zero, at most the domain's speed.
+        assert_invalid(
+            parse("modules = 1\n[limits]\nelongation_rate = 0\n"),
+            3,
+            "limits.elongation_rate",
+            "must be > 0 and ≤ 100 m/s, got 0",
+        );
+        assert_invalid(
+            parse("modules = 1\n[limits]\nelongation_rate = 101\n"),
+            3,
+            "limits.elongation_rate",
+            "must be > 0 and ≤ 100 m/s, got 101",
+        );
         // A margin tightens the defaults too, and must leave them room.
         assert_invalid(
             parse("modules = 1\n[limits]\nelongation_margin = 0.25\n"),

@@ -214,6 +214,10 @@ pub struct Limits {
     pub gains: [Option<f64>; 2],
     /// Which limits the file writes; the others are the domain's defaults.
     pub written: LimitFlags,
+    /// `v̄` \[m/s\] of the rate row `|δL̇| ≤ v̄` (predicted and certified rows only): the
+    /// file's, else [`crate::limits::DEFAULT_ELONGATION_RATE_PER_L0`] rest lengths per
+    /// second.
+    pub elongation_rate: f64,
 }
 
 impl Limits {
@@ -230,6 +234,7 @@ impl Limits {
             bend_margin: 0.0,
             gains: [None, None],
             written: LimitFlags::default(),
+            elongation_rate: crate::limits::DEFAULT_ELONGATION_RATE_PER_L0 * rest_length,
         }
     }
 

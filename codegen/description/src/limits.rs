@@ -221,6 +221,20 @@ pub const DEFAULT_MAX_BEND_RAD: f64 = 1.25 * std::f64::consts::PI;
 /// never bind in the paper's simulation (`tests/tests/model/domain_limits.rs`).
 pub const DOMAIN_BARRIER_GAINS: [f64; 2] = [30.0, 30.0];
 
+/// The default bound on each module's elongation rate `|δL̇|`, in rest lengths per second:
+/// `|δL̇| ≤ 10 L0/s` (1 m/s for `L0 = 0.1 m`), and the largest rate a robot file may write is
+/// the domain's speed, [`crate::domain::MAX_SPEED`]. It is a row of the predicted and
+/// certified rows only (docs/model.md §5, "Rate limits"): the filter may not buy a corner by
+/// stretching a module faster, since a module thrashing between its limits at several
+/// metres per second leaves the next hold in a state from which no command keeps every
+/// barrier (`robots/three-square.toml`: 2.3 to 6 m/s, a corner 3 mm past contact, before
+/// this row). The paper's scenario with the certified rows stays below 0.14 m/s; the
+/// paper's own rows (3.2 m/s on module 2 in its simulation) do not have this row.
+pub const DEFAULT_ELONGATION_RATE_PER_L0: f64 = 10.0;
+
+/// An elongation rate bound `|δL̇| ≤ v̄` \[m/s\] (`[limits] elongation_rate`).
+pub const ELONGATION_RATE_M_S: Limit = Limit::above(0.0, crate::domain::MAX_SPEED, "m/s");
+
 /// The domain's default elongation limits `[δL_min, δL_max]` \[m\] of a module of rest
 /// length `L0` \[m\]: `[−(1 − λ_min) L0, 4 L0]`, the widest a robot file may write.
 pub fn default_elongation(rest_length: f64) -> [f64; 2] {

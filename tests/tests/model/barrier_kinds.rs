@@ -62,6 +62,7 @@ fn robot() -> Robot {
                 elongation: true,
                 bend: true,
             },
+            elongation_rate: 1.0,
         },
         Limits {
             elongation: [-0.04, 0.035],
@@ -73,6 +74,7 @@ fn robot() -> Robot {
                 elongation: true,
                 bend: true,
             },
+            elongation_rate: 1.0,
         },
     ];
     let norm = (0.3f64 * 0.3 + 0.5 * 0.5 + 0.8 * 0.8).sqrt();

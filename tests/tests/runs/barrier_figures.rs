@@ -52,6 +52,7 @@ fn every_barrier_robot(centre: [f64; 3]) -> Robot {
                 elongation: true,
                 bend: true,
             },
+            elongation_rate: 1.0,
         };
         2
     ];

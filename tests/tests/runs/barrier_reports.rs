@@ -33,6 +33,7 @@ fn limits(i: usize) -> Limits {
             elongation: true,
             bend: true,
         },
+        elongation_rate: 1.0,
     }
 }
 

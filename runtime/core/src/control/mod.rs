@@ -23,9 +23,11 @@
 use std::ops::Range;
 
 pub mod certified;
+mod rates;
 
 use certified::{CertifiedWorkspace, certified_filter};
 pub use certified::{Uncertified, UncertifiedCounts};
+use rates::{RATE_ROWS_PER_LIMIT, RateRows};
 
 use softcbf_description::gains::PAPER_GAINS;
 use softcbf_description::uncertainty::{self, ModuleFactors};
@@ -428,6 +430,8 @@ pub struct Controller {
     compute_budget: f64,
     /// Which predicted rows gave way on the last tick.
     gave_way: GaveWay,
+    /// The rate limits' rows (predicted and certified rows only).
+    rates: Option<RateRows>,
 }
 
 /// What the sampled-data rows need besides the controller's own buffers.
@@ -1169,7 +1173,24 @@ impl Controller {
             ),
             SafetyMode::Paper | SafetyMode::HoldCorrection => (nb, 0),
         };
-        let limits_start = barrier_rows + extra_rows;
+        // Every module's elongation rate (docs/model.md §5, "Rate limits").
+        let rate_limits: Vec<(usize, f64)> = match settings.safety {
+            SafetyMode::Predicted | SafetyMode::Certified => model
+                .robot
+                .limits
+                .iter()
+                .enumerate()
+                .map(|(i, limits)| (3 * i + 2, limits.elongation_rate))
+                .collect(),
+            SafetyMode::Paper | SafetyMode::HoldCorrection => Vec::new(),
+        };
+        let rate_start = barrier_rows + extra_rows;
+        let limits_start = rate_start + RATE_ROWS_PER_LIMIT * rate_limits.len();
+        let rates = (!rate_limits.is_empty()).then(|| RateRows {
+            limits: rate_limits,
+            start: rate_start,
+            gain: settings.barrier_gains[0],
+        });
         let rows = limits_start + limit_rhs.len();
         let qp = SafetyQp::new(nq, rows, settings.qp)?;
         let mut constraint_rows = vec![0.0; rows * nq];
@@ -1208,6 +1229,7 @@ impl Controller {
             margin_age: 0.0,
             compute_budget: f64::INFINITY,
             gave_way: GaveWay::Nothing,
+            rates,
         })
     }
 
@@ -1741,6 +1763,15 @@ pub(super) fn sampled_filter(
         offset: &sampled.offset,
     };
     end.write(m, &mut controller.rows, &mut controller.rhs);
+    if let Some(rates) = controller.rates.as_ref() {
+        rates.write_linear(
+            &sampled.prediction,
+            &sampled.offset,
+            qd,
+            &mut controller.rows,
+            &mut controller.rhs,
+        );
+    }
     let mut status = solve_giving_way(controller, m);
     // Each pass integrates the plant under the last command and linearizes the rows there.
     // After the settings' passes, a command is kept only once its own integrated motion
@@ -1828,6 +1859,21 @@ pub(super) fn sampled_filter(
                         .robust
                         .as_ref()
                         .map_or(0.0, |robust| robust.margin[r]);
+            }
+            if let Some(rates) = controller.rates.as_ref() {
+                let slots = RateRows::samples(&sampled.prediction);
+                for (slot, &at) in slots.iter().enumerate() {
+                    if at == j {
+                        rates.write_at(
+                            &sampled.prediction,
+                            slot,
+                            [qd, &sampled.state[nq..]],
+                            &sampled.guess,
+                            &mut controller.rows,
+                            &mut controller.rhs,
+                        );
+                    }
+                }
             }
             if j + 1 == m {
                 let forced_velocity = sampled.prediction.end_velocity_forced();

@@ -643,6 +643,7 @@ mod tests {
                     elongation: true,
                     bend: true,
                 },
+                elongation_rate: 1.0,
             };
             2
         ];
