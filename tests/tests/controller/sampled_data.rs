@@ -493,38 +493,45 @@ fn plants_whose_numbers_multiply_inside_the_box_keep_every_barrier() {
     }
 }
 
-/// A three-square run the falsifier found (`tests/data/three-square-thrash.toml`): without
-/// rate rows the filter kept module 1's corner by stretching modules at up to 2.3 m/s until
-/// they sprang back at 6 m/s and the corner went 3.0 mm below zero. With the elongation rate
-/// rows (the default `10 L0/s`, 1 m/s here) every barrier stays above −1e-6 m, checked every
-/// millisecond in closed form; the recorded rates stay near the bound (the rows hold it at
-/// two samples of each hold, not between them: at most 1.2 v̄ here).
+/// Three-square runs the falsifier found. `three-square-thrash`: without rate rows the filter
+/// kept module 1's corner by stretching modules at up to 2.3 m/s until they sprang back at
+/// 6 m/s and the corner went 3.0 mm below zero. `three-square-alternate`: with them, the
+/// predicted rows' check passes alternated between two commands that each missed a corner's
+/// rows by 10 µm, and the corner went 10 µm below zero. With the elongation rate rows (the
+/// default `10 L0/s`, 1 m/s here) and half steps in the later check passes every barrier
+/// stays above −1e-6 m, checked every millisecond in closed form; the recorded rates stay
+/// near the bound (the rows hold it at two samples of each hold, not between them).
 #[test]
-fn elongation_rate_rows_keep_a_thrashing_module_from_breaking_a_corner() {
+fn three_square_cases_the_falsifier_found_keep_every_barrier() {
     let robot = Robot::load(&repo("robots/three-square.toml")).expect("the robot");
     let model = Model::new(robot.clone()).expect("its model");
-    let file = ScenarioFile::load(&repo("tests/data/three-square-thrash.toml")).expect("reads");
-    let scenario = file
-        .resolve_with(&model, &Overrides::default())
-        .expect("resolves");
-    assert_eq!(scenario.controller.safety, SafetyMode::Certified);
-    let run = simulate(&model, &scenario, true, &mut |_| {}).expect("runs");
-    assert_eq!(run.summary.stopped, None);
-    assert_eq!(run.summary.counts.invalid_state, 0);
-    assert_eq!(run.summary.counts.relaxed, 0);
-    assert!(run.record.rows().count() > 1900, "dense records expected");
     let limit = 10.0 * robot.modules[0].rest_length;
-    let mut fastest: f64 = 0.0;
-    for row in run.record.rows() {
-        let values = softcbf_tests::reference::all_barrier_values_closed_form(&robot, row.q);
-        let lowest = values.iter().copied().fold(f64::INFINITY, f64::min);
-        assert!(lowest >= -1e-6, "t = {}: {lowest}", row.t);
-        for i in 0..3 {
-            fastest = fastest.max(row.qd[3 * i + 2].abs());
+    for case in ["three-square-thrash", "three-square-alternate"] {
+        let file = ScenarioFile::load(&repo(&format!("tests/data/{case}.toml"))).expect("reads");
+        let scenario = file
+            .resolve_with(&model, &Overrides::default())
+            .expect("resolves");
+        assert_eq!(scenario.controller.safety, SafetyMode::Certified);
+        let run = simulate(&model, &scenario, true, &mut |_| {}).expect("runs");
+        assert_eq!(run.summary.stopped, None, "{case}");
+        assert_eq!(run.summary.counts.invalid_state, 0, "{case}");
+        assert_eq!(run.summary.counts.relaxed, 0, "{case}");
+        assert!(
+            run.record.rows().count() > 1900,
+            "{case}: dense records expected"
+        );
+        let mut fastest: f64 = 0.0;
+        for row in run.record.rows() {
+            let values = softcbf_tests::reference::all_barrier_values_closed_form(&robot, row.q);
+            let lowest = values.iter().copied().fold(f64::INFINITY, f64::min);
+            assert!(lowest >= -1e-6, "{case}, t = {}: {lowest}", row.t);
+            for i in 0..3 {
+                fastest = fastest.max(row.qd[3 * i + 2].abs());
+            }
         }
+        assert!(
+            fastest <= 1.2 * limit,
+            "{case}: |δL̇| up to {fastest} m/s against {limit}"
+        );
     }
-    assert!(
-        fastest <= 1.2 * limit,
-        "|δL̇| up to {fastest} m/s against {limit}"
-    );
 }

@@ -1934,6 +1934,18 @@ pub(super) fn sampled_filter(
             }
         }
         status = solve_giving_way(controller, m);
+        if checking && pass > passes && status == TickStatus::Filtered {
+            // From the second step on the plant's own sensitivity, half the step: where the
+            // first step missed, full steps can alternate between two commands that each
+            // miss (on robots/three-square.toml two commands 50 N apart on a bending
+            // coordinate, each 10 µm short of a corner's rows, and the corner 10 µm below
+            // zero; with half steps 7e-8 m, docs/model.md §5).
+            if let Some(sampled) = controller.sampled.as_ref() {
+                for (t, g) in controller.tau.iter_mut().zip(&sampled.guess) {
+                    *t = 0.5 * (*t + g);
+                }
+            }
+        }
     }
     status
 }
