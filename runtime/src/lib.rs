@@ -20,6 +20,7 @@
 //! | [`record`] | a run's trajectory, one row per tick (CSV in and out) |
 //! | [`plot`] | figures of a run like the paper's Fig. 4 (PNG, SVG) |
 //! | [`replot`] | `softcbf plot`: the figures redrawn from trajectory CSVs and hardware logs |
+//! | [`view`] | `softcbf view`: a run as one self-contained HTML page, an interactive 3-D view in the browser |
 //! | [`output`] | what `softcbf simulate` writes and shows: CSVs, summary, figures, progress |
 //! | [`inspect`] | `softcbf model`: every generated and dynamic quantity at one state, as JSON |
 //! | [`protocol`] | Dynamixel Protocol 2.0 codec and bus client |
@@ -73,3 +74,4 @@ pub mod mcap_log;
 pub mod output;
 pub mod replot;
 pub mod verify;
+pub mod view;

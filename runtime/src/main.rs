@@ -101,6 +101,9 @@ struct SimulateArgs {
     /// PlotJuggler, Rerun; README.md, "MCAP logs").
     #[arg(long)]
     mcap: bool,
+    /// Also write `view.html`, the run in 3-D in the browser, as `softcbf view` does.
+    #[arg(long)]
+    view: bool,
     /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
     #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
     barrier_threshold: f64,
@@ -129,6 +132,9 @@ enum Command {
     Run(softcbf::hardware::cli::RunArgs),
     /// Redraw the figures from trajectory CSVs or hardware logs (several: side by side).
     Plot(softcbf::replot::PlotArgs),
+    /// Write an interactive 3-D view of a `simulate` run in the browser: one HTML file that
+    /// works offline (default DIR/view.html).
+    View(softcbf::view::ViewArgs),
     /// Identify stiffness, damping and actuator gains from run logs, and write the robot
     /// file with those numbers (and a figure of a held-out part predicted).
     Identify(softcbf::identify::IdentifyArgs),
@@ -170,6 +176,7 @@ fn run(cli: Cli, console: &mut Console) -> Result<u8, String> {
         Command::Emulate(args) => softcbf::hardware::cli::emulate(args, console),
         Command::Run(args) => softcbf::hardware::cli::run(args, console),
         Command::Plot(args) => softcbf::replot::plot(args, console),
+        Command::View(args) => softcbf::view::view(args, console),
         Command::Identify(args) => softcbf::identify::run(args, console),
         Command::Verify(args) => softcbf::verify::cli::verify_interruptible(args, console),
         Command::Simulate(args) => run_simulation(args, console),
@@ -293,6 +300,12 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         let summary = serde_json::to_value(&main.summary).map_err(|e| e.to_string())?;
         softcbf::mcap_log::write_mcap(&path, &main, comparison.as_ref(), &summary)?;
         written.push(path);
+    }
+    if args.view {
+        let path = out.join(softcbf::view::FILE_NAME);
+        let view = softcbf::view::write_view(out, &path, Some(&model), softcbf::view::DEFAULT_FPS)
+            .map_err(|e| e.to_string())?;
+        written.push(view.path);
     }
     console.say(&one_line(&main.summary));
     if let Some(pd) = &comparison {

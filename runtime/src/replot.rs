@@ -137,18 +137,8 @@ pub fn plot(args: PlotArgs, console: &mut Console) -> Result<u8, String> {
 /// that file can still be read; otherwise `None` and a note on standard error (the
 /// figures are drawn, the 3-D view is not).
 fn robot_of_run(files: &[PathBuf]) -> Option<Model> {
-    let facts = facts_for(files.first()?).ok()?;
-    let file = facts.robot_file?;
-    let robot = if file.starts_with("<embedded") {
-        crate::robot_file::load_robot(None)
-    } else {
-        crate::robot_file::load_robot(Some(Path::new(&file)))
-    };
-    match robot
-        .map_err(|e| e.to_string())
-        .and_then(|robot| Model::new(robot).map_err(|e| e.to_string()))
-    {
-        Ok(model) => Some(model),
+    match run_robot(files.first()?) {
+        Ok(model) => model,
         Err(error) => {
             eprintln!(
                 "note: no 3-D view: the run's robot file cannot be used ({error}); give it \
@@ -157,6 +147,25 @@ fn robot_of_run(files: &[PathBuf]) -> Option<Model> {
             None
         }
     }
+}
+
+/// The model of the robot that the `summary.json` beside `file` names
+/// (`settings.robot.file`): `Ok(None)` when there is no summary or it names no robot
+/// file; an error when the summary cannot be read or the robot file cannot be used.
+pub(crate) fn run_robot(file: &Path) -> Result<Option<Model>, String> {
+    let facts = facts_for(file).map_err(|e| e.to_string())?;
+    let Some(robot_file) = facts.robot_file else {
+        return Ok(None);
+    };
+    let robot = if robot_file.starts_with("<embedded") {
+        crate::robot_file::load_robot(None)
+    } else {
+        crate::robot_file::load_robot(Some(Path::new(&robot_file)))
+    };
+    robot
+        .map_err(|e| e.to_string())
+        .and_then(|robot| Model::new(robot).map_err(|e| e.to_string()))
+        .map(Some)
 }
 
 /// `START,END` \[s\] of `--t-range`.
@@ -203,6 +212,8 @@ struct RunFacts {
     set_point: Option<Vec<f64>>,
     /// The robot file the run used (`settings.robot.file`).
     robot_file: Option<String>,
+    /// The names of the run's scenario and robot (`scenario`, `robot`).
+    names: Option<(String, String)>,
 }
 
 /// Reads `summary.json` beside `file`, if there is one, and picks the part about `file`:
@@ -260,10 +271,13 @@ fn facts_for(file: &Path) -> Result<RunFacts, ReplotError> {
         .pointer("/settings/robot/file")
         .and_then(Value::as_str)
         .map(str::to_string);
+    let name = |key: &str| summary.get(key).and_then(Value::as_str).map(str::to_string);
+    let names = name("scenario").zip(name("robot"));
     Ok(RunFacts {
         controller,
         set_point,
         robot_file,
+        names,
     })
 }
 
@@ -313,22 +327,29 @@ fn title_for(file: &Path, record: &Record, facts: &RunFacts) -> String {
     }
 }
 
-/// Redraws the figures of the runs in `files` (one column each, left to right) into
-/// `out_dir` (default: the first file's directory) and returns the files written. Titles
-/// and the set point come from the `summary.json` beside each file when there is one
-/// (the set point from the first file's); with `model`, the barrier labels and their
-/// modules come from that robot instead of the files' headers (for logs written before
-/// the headers named them).
-pub fn replot(
-    files: &[PathBuf],
-    out_dir: Option<&Path>,
-    model: Option<&Model>,
-    options: &FigureOptions,
-) -> Result<Vec<PathBuf>, ReplotError> {
+/// The runs of some files as `softcbf plot` reads them: records, column titles and what
+/// their `summary.json` says.
+pub(crate) struct Runs {
+    /// One record per file, in order.
+    pub records: Vec<Record>,
+    /// Each record's column title (told apart by file where two are the same).
+    pub titles: Vec<String>,
+    /// The first file's set point, if its summary gives one of the records' length.
+    pub set_point: Vec<f64>,
+    /// `scenario on robot`, from the first file's summary.
+    pub heading: Option<String>,
+}
+
+/// Reads `files` (trajectory CSVs or hardware logs) with the `summary.json` beside each;
+/// with `model`, the barrier labels and their modules come from that robot instead of
+/// the files' headers (for logs written before the headers named them). Refuses files
+/// whose numbers of coordinates or barriers differ from the first's or the model's.
+pub(crate) fn read_runs(files: &[PathBuf], model: Option<&Model>) -> Result<Runs, ReplotError> {
     let first = files.first().ok_or(ReplotError::NoFiles)?;
-    let mut records = Vec::with_capacity(files.len());
+    let mut records: Vec<Record> = Vec::with_capacity(files.len());
     let mut titles = Vec::with_capacity(files.len());
     let mut set_point = None;
+    let mut heading = None;
     for file in files {
         let mut record = Record::read_csv(file)?;
         let facts = facts_for(file)?;
@@ -353,6 +374,10 @@ pub fn replot(
         }
         if records.is_empty() {
             set_point = facts.set_point.clone();
+            heading = facts
+                .names
+                .as_ref()
+                .map(|(scenario, robot)| format!("{scenario} on {robot}"));
         }
         titles.push(title_for(file, &record, &facts));
         records.push(record);
@@ -365,6 +390,33 @@ pub fn replot(
     }
     let n = records[0].columns().n();
     let set_point = set_point.filter(|s| s.len() == n).unwrap_or_default();
+    Ok(Runs {
+        records,
+        titles,
+        set_point,
+        heading,
+    })
+}
+
+/// Redraws the figures of the runs in `files` (one column each, left to right) into
+/// `out_dir` (default: the first file's directory) and returns the files written. Titles
+/// and the set point come from the `summary.json` beside each file when there is one
+/// (the set point from the first file's); with `model`, the barrier labels and their
+/// modules come from that robot instead of the files' headers (for logs written before
+/// the headers named them).
+pub fn replot(
+    files: &[PathBuf],
+    out_dir: Option<&Path>,
+    model: Option<&Model>,
+    options: &FigureOptions,
+) -> Result<Vec<PathBuf>, ReplotError> {
+    let first = files.first().ok_or(ReplotError::NoFiles)?;
+    let Runs {
+        records,
+        titles,
+        set_point,
+        ..
+    } = read_runs(files, model)?;
     let per_module = model
         .map(|model| barriers_per_module(model.generated.barrier_table(), model.n_modules()))
         .unwrap_or_default();

@@ -37,7 +37,7 @@ pub const COMMANDS: [&str; 4] = [
     "`simulate`, `verify replay`",
     "`verify` (a batch or a shard), `verify merge`",
     "`run`",
-    "`model`, `plot`, `identify`, `emulate`",
+    "`model`, `plot`, `view`, `identify`, `emulate`",
 ];
 
 /// What each status means for each command of [`COMMANDS`].

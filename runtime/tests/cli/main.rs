@@ -13,3 +13,4 @@ mod plot_cli;
 mod search_cli;
 mod simulate_settings;
 mod verify_cli;
+mod view_cli;

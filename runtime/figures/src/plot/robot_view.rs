@@ -16,6 +16,8 @@
 //! state edge-on, along the bend axis of the module with the lowest corner barrier, and
 //! annotates that barrier in millimetres above the margin band `ε`; its note also names
 //! the lowest barrier of any kind. Only the snapshot rows of a record are evaluated.
+//! [`scene`] gives the same shapes at any frame times, unprojected, for a view drawn
+//! elsewhere (`softcbf view`'s page in the browser).
 //!
 //! ```no_run
 //! # use softcbf_core::{model::Model, record::Record};
@@ -35,6 +37,8 @@ use plotters::prelude::{BitMapBackend, IntoDrawingArea, SVGBackend};
 mod draw;
 #[path = "robot_gif.rs"]
 mod gif_file;
+#[path = "robot_scene.rs"]
+pub mod scene;
 #[path = "robot_shape.rs"]
 mod shape;
 
