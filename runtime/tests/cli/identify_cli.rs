@@ -169,18 +169,20 @@ fn the_walk_through_finds_the_true_robot() {
         );
     }
     // The identified file's [uncertainty] comes from these standard errors: it covers the
-    // true plant around the written numbers; stiffness at most half the input's ±10 % (3 σ
-    // of module 2's κθ: 1.5 % to 1.9 % on an idle machine, 3.3 % in one run beside the rest
-    // of this suite, the readings' noise part growing with the landing times' jitter);
-    // damping is the least certain (3 σ of the least certain βθ, 8 % to 21 % in runs here,
-    // its timing part growing with the machine's load), so only an absurd width fails.
+    // true plant around the written numbers (below), and its stiffness is narrower than the
+    // input's unmeasured ±10 %, which it must not carry over. The widths grow with the
+    // machine's load, so the bounds are what holds at any load, not the widths of an idle
+    // run: 3 σ of module 2's κθ is 1.5 % to 1.9 % on an idle machine, 3.3 % and 5.7 % in
+    // runs beside the rest of this suite (its readings' noise part, 0.5 % idle and 1.9 %
+    // loaded, growing with the landing times' jitter); damping is the least certain (3 σ of
+    // the least certain βθ, 8 % to 21 % idle, 32 % loaded), so only an absurd width fails.
     let declared = Robot::load(&identified).unwrap().uncertainty;
     println!(
         "identified [uncertainty]: stiffness {}, damping {}, mass {}, force {}",
         declared.stiffness, declared.damping, declared.mass, declared.force
     );
     assert!(
-        declared.stiffness < 0.05 && declared.damping < 0.3,
+        declared.stiffness < 0.1 && declared.damping < 0.5,
         "{declared:?}"
     );
     for (module, (t, f)) in truth.iter().zip(&found).enumerate() {
