@@ -33,7 +33,8 @@ impl RateRows {
         [mid, last]
     }
 
-    /// Writes the rows for the linear prediction: `q̇(t_j) = ȧ_j + Γ̇_j (τ − g₀)`.
+    /// Writes the rows for the linear prediction: `q̇(t_j) = ȧ_j + Γ̇_j (τ − g₀)`, the rows
+    /// linearized at `τ = g₀` (`offset`), whose motion has the free velocity `ȧ_j`.
     pub(super) fn write_linear(
         &self,
         prediction: &HoldPrediction,
@@ -42,20 +43,9 @@ impl RateRows {
         rows: &mut [f64],
         rhs: &mut [f64],
     ) {
-        let nq = offset.len();
         for (slot, &j) in Self::samples(prediction).iter().enumerate() {
-            let (free, forced) = (prediction.free_velocity(j), prediction.forced_velocity(j));
-            for (l, &(c, limit)) in self.limits.iter().enumerate() {
-                let gamma = &forced[c * nq..(c + 1) * nq];
-                // q̇_c(t_j) at τ = g₀ is free[c]; the row is linear about g₀.
-                let pair = RatePair {
-                    limit,
-                    start_rate: qd[c],
-                    t: prediction.time(j),
-                    rate: free[c],
-                };
-                self.write_pair(self.first_row(l, slot), &pair, gamma, offset, rows, rhs);
-            }
+            let free = prediction.free_velocity(j);
+            self.write_at(prediction, slot, [qd, free], offset, rows, rhs);
         }
     }
 
