@@ -432,19 +432,24 @@ fn a_fast_three_square_motion_keeps_every_barrier() {
         };
         let scenario = file.resolve_with(&model, &overrides).expect("resolves");
         let run = simulate(&model, &scenario, true, &mut |_| {}).expect("runs");
-        assert_eq!(run.summary.stopped, None, "{safety:?}");
-        assert_eq!(run.summary.counts.invalid_state, 0, "{safety:?}");
-        assert_eq!(run.summary.counts.relaxed, 0, "{safety:?}");
-        let rows = run.record.rows().count();
-        assert!(
-            rows > 1900,
-            "{safety:?}: {rows} records, dense ones expected"
-        );
-        for row in run.record.rows() {
-            let values = softcbf_tests::reference::all_barrier_values_closed_form(&robot, row.q);
-            let lowest = values.iter().copied().fold(f64::INFINITY, f64::min);
-            assert!(lowest >= -1e-6, "{safety:?}, t = {}: {lowest}", row.t);
-        }
+        assert_dense_run_keeps_every_barrier(&robot, &run, &format!("{safety:?}"));
+    }
+}
+
+/// A run with millisecond records that stopped nowhere, had no invalid or relaxed tick, and
+/// whose every barrier, evaluated in closed form from the recorded `q` with `robot`'s
+/// geometry (the plant's numbers do not move it), stays above −1e-6 m. `what` names the run
+/// in a failure.
+fn assert_dense_run_keeps_every_barrier(robot: &Robot, run: &softcbf::sim::Run, what: &str) {
+    assert_eq!(run.summary.stopped, None, "{what}");
+    assert_eq!(run.summary.counts.invalid_state, 0, "{what}");
+    assert_eq!(run.summary.counts.relaxed, 0, "{what}");
+    let rows = run.record.rows().count();
+    assert!(rows > 1900, "{what}: {rows} records, dense ones expected");
+    for row in run.record.rows() {
+        let values = softcbf_tests::reference::all_barrier_values_closed_form(robot, row.q);
+        let lowest = values.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(lowest >= -1e-6, "{what}, t = {}: {lowest}", row.t);
     }
 }
 
@@ -470,25 +475,7 @@ fn plants_whose_numbers_multiply_inside_the_box_keep_every_barrier() {
             };
             let scenario = file.resolve_with(&model, &overrides).expect("resolves");
             let run = simulate(&model, &scenario, true, &mut |_| {}).expect("runs");
-            assert_eq!(run.summary.stopped, None, "{case}, {safety:?}");
-            assert_eq!(run.summary.counts.invalid_state, 0, "{case}, {safety:?}");
-            assert_eq!(run.summary.counts.relaxed, 0, "{case}, {safety:?}");
-            let rows = run.record.rows().count();
-            assert!(
-                rows > 1900,
-                "{case}, {safety:?}: {rows} records, dense ones expected"
-            );
-            // The plant's numbers do not move its geometry: the file's robot draws its corners.
-            for row in run.record.rows() {
-                let values =
-                    softcbf_tests::reference::all_barrier_values_closed_form(&robot, row.q);
-                let lowest = values.iter().copied().fold(f64::INFINITY, f64::min);
-                assert!(
-                    lowest >= -1e-6,
-                    "{case}, {safety:?}, t = {}: {lowest}",
-                    row.t
-                );
-            }
+            assert_dense_run_keeps_every_barrier(&robot, &run, &format!("{case}, {safety:?}"));
         }
     }
 }
@@ -513,22 +500,12 @@ fn three_square_cases_the_falsifier_found_keep_every_barrier() {
             .expect("resolves");
         assert_eq!(scenario.controller.safety, SafetyMode::Certified);
         let run = simulate(&model, &scenario, true, &mut |_| {}).expect("runs");
-        assert_eq!(run.summary.stopped, None, "{case}");
-        assert_eq!(run.summary.counts.invalid_state, 0, "{case}");
-        assert_eq!(run.summary.counts.relaxed, 0, "{case}");
-        assert!(
-            run.record.rows().count() > 1900,
-            "{case}: dense records expected"
-        );
-        let mut fastest: f64 = 0.0;
-        for row in run.record.rows() {
-            let values = softcbf_tests::reference::all_barrier_values_closed_form(&robot, row.q);
-            let lowest = values.iter().copied().fold(f64::INFINITY, f64::min);
-            assert!(lowest >= -1e-6, "{case}, t = {}: {lowest}", row.t);
-            for i in 0..3 {
-                fastest = fastest.max(row.qd[3 * i + 2].abs());
-            }
-        }
+        assert_dense_run_keeps_every_barrier(&robot, &run, case);
+        let fastest = run
+            .record
+            .rows()
+            .flat_map(|row| (0..3).map(move |i| row.qd[3 * i + 2].abs()))
+            .fold(0.0, f64::max);
         assert!(
             fastest <= 1.2 * limit,
             "{case}: |δL̇| up to {fastest} m/s against {limit}"
