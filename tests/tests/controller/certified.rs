@@ -110,6 +110,10 @@ fn true_lowest<const N: usize>(
 struct Tally {
     ticks: usize,
     proven: usize,
+    /// Proven ticks whose command is not the QP's but a point on the line from the
+    /// predicted rows' command to holding the state (the backup, docs/model.md §5): every
+    /// proven tick is checked alike, so these are too.
+    backups: u64,
     /// Over proven ticks: the smallest gap `true lowest − bound` over barriers, and for the
     /// barrier closest to zero the bound and the true lowest value.
     closest: Vec<(f64, f64)>,
@@ -171,6 +175,7 @@ fn episodes<const N: usize>(
             let zero = vec![0.0; N];
             let (mut q, mut qd) = (q, qd);
             for _ in 0..3 {
+                let backups_before = controller.certified_split().map_or(0, |s| s.backups);
                 let reference = Reference {
                     q: &set_point,
                     qd: &zero,
@@ -205,6 +210,8 @@ fn episodes<const N: usize>(
                 };
                 if let Some(bound) = bound {
                     tally.proven += 1;
+                    tally.backups +=
+                        controller.certified_split().map_or(0, |s| s.backups) - backups_before;
                     let mut gap = f64::INFINITY;
                     for (k, (b, t)) in bound.iter().zip(&lowest).enumerate() {
                         assert!(
@@ -233,8 +240,8 @@ fn episodes<const N: usize>(
         }
     }
     eprintln!(
-        "{} against {}: {} of {} ticks proven; {:?}",
-        robot.name, plant.name, tally.proven, tally.ticks, tally.statuses
+        "{} against {}: {} of {} ticks proven ({} by the backup); {:?}",
+        robot.name, plant.name, tally.proven, tally.ticks, tally.backups, tally.statuses
     );
     tally
 }
@@ -309,4 +316,72 @@ fn the_bound_holds_for_plants_inside_the_declared_box() {
         tally.proven += t.proven;
     }
     mostly_proven(&tally, 0.01);
+}
+
+/// The backup (docs/model.md §5): where no attempt proves the QP's command, a point on the
+/// line from the predicted rows' command to holding the state may be proven instead. A
+/// closed loop that needs it, `scenarios/verify-paper.toml`'s run 35 (seed 1: from rest
+/// toward the set point below, at 33 Hz): 100 ticks, each held on the tests' reference
+/// plant, and every proven tick's bound checked against the true barriers over its hold,
+/// those proven by the backup among them. It must meet at least one such tick (the test
+/// is not vacuous).
+#[test]
+fn ticks_proven_by_the_backup_hold_their_bound() {
+    const N: usize = 6;
+    let model = Model::new(Robot::paper_sim()).unwrap();
+    let robot = &model.robot;
+    let set_point = [
+        0.07320929733462704,
+        -0.06399910750656182,
+        -0.06730955064498843,
+        0.04289200938565489,
+        0.07155517465083204,
+        -0.03594174139327748,
+    ];
+    let hold = 0.0303;
+    let mut settings = ControllerSettings::paper(&model);
+    settings.safety = SafetyMode::Certified;
+    settings.hold = hold;
+    let mut controller = Controller::new(&model, settings).expect("controller");
+    let zero = [0.0; N];
+    let (mut q, mut qd) = (vec![0.0; N], vec![0.0; N]);
+    let (mut proven, mut backups) = (0, 0);
+    for tick_index in 0..100 {
+        let before = controller.certified_split().map_or(0, |s| s.backups);
+        let reference = Reference {
+            q: &set_point,
+            qd: &zero,
+            qdd: &zero,
+        };
+        let status = tick(&model, &mut controller, &q, &qd, reference);
+        let by_backup = controller.certified_split().map_or(0, |s| s.backups) > before;
+        let bound = controller.certified_bound().map(<[f64]>::to_vec);
+        assert_eq!(
+            bound.is_some(),
+            status == TickStatus::Filtered,
+            "{status:?}"
+        );
+        assert!(
+            !by_backup || bound.is_some(),
+            "a backup tick is a proven one"
+        );
+        let (lowest, end) = true_lowest::<N>(robot, &q, &qd, controller.tau(), hold)
+            .expect("the reference plant integrates the hold");
+        if let Some(bound) = bound {
+            proven += 1;
+            backups += usize::from(by_backup);
+            for (k, (b, t)) in bound.iter().zip(&lowest).enumerate() {
+                assert!(
+                    *t >= *b - INTEGRATION,
+                    "tick {tick_index} (backup: {by_backup}): barrier {k} reached {t:e} m, \
+                     below its proven bound {b:e} m"
+                );
+            }
+        }
+        q = end[..N].to_vec();
+        qd = end[N..].to_vec();
+    }
+    eprintln!("verify-paper run 35: {proven} of 100 ticks proven, {backups} by the backup");
+    assert!(backups >= 1, "no tick needed the backup ({proven} proven)");
+    assert!(proven >= 90, "{proven} of 100 ticks proven");
 }

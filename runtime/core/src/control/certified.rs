@@ -181,6 +181,9 @@ pub struct CertifiedSplit {
     pub bound: f64,
     pub qp: f64,
     pub fallback: f64,
+    /// Ticks proven with a command between the predicted rows' and the backup (the state
+    /// held), not the QP's.
+    pub backups: u64,
 }
 
 /// Seconds since `mark`, and `mark` moved to now.
@@ -251,6 +254,8 @@ pub(super) struct CertifiedWorkspace {
     /// The first attempt's command `u = τ − g₀`, and the box of later attempts (a fraction
     /// of it; infinite: no box).
     first_center: Vec<f64>,
+    /// The predicted rows' command while [`backup`] tries the line from it.
+    backup_tau: Vec<f64>,
     shrink: f64,
     /// The command being bounded, `u = τ − g₀`.
     center: Vec<f64>,
@@ -397,6 +402,7 @@ impl CertifiedWorkspace {
             scale: vec![0.0; nq],
             acc_sup: vec![0.0; samples * nq],
             first_center: vec![0.0; nq],
+            backup_tau: vec![0.0; nq],
             shrink: f64::INFINITY,
             center: vec![0.0; nq],
             q_jet: vec![Dual::default(); nq],
@@ -548,6 +554,7 @@ pub(super) fn certified_filter(
         total.bound += split.bound;
         total.qp += split.qp;
         total.fallback += split.fallback + lap(&mut mark);
+        total.backups += split.backups;
     }
     status
 }
@@ -643,39 +650,8 @@ fn certified_attempts(
         if !ws.shrink.is_finite() {
             ws.first_center.copy_from_slice(&ws.center);
         }
-        let dynamics = &controller.dynamics;
-        let inverse_mass = &controller.inverse_mass;
-        let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
         let had_last = ws.have_last;
-        let mut bounded = correction(model, ws, inverse_mass, mass, nonlinear, q).map(|()| {
-            linear_cells(model, ws, inverse_mass, mass);
-            split.prediction += lap(mark);
-            Check::Below
-        });
-        // The coarse partition first where it has been proving the ticks; where its bound
-        // does not close or does not prove the command, the fine one (the same command,
-        // rows and correction: only the enclosures' grouping differs).
-        if bounded.is_ok() {
-            for coarse in [true, false] {
-                let Some(ws) = controller.certified.as_mut() else {
-                    return controller.fallback(InvalidState::NonFiniteModel);
-                };
-                if coarse && !(ws.coarse_first && ws.coarse_groups != ws.groups) {
-                    continue;
-                }
-                ws.coarse = coarse;
-                let dynamics = &controller.dynamics;
-                let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
-                bounded = error_bounds(model, ws, &controller.inverse_mass, mass, nonlinear, q)
-                    .map(|()| certify(model, controller, q, qd));
-                if let Some(ws) = controller.certified.as_mut() {
-                    ws.note_partition(coarse, bounded == Ok(Check::Proven));
-                }
-                if bounded == Ok(Check::Proven) {
-                    break;
-                }
-            }
-        }
+        let bounded = bound_command(model, controller, q, qd, mark, split);
         split.bound += lap(mark);
         let check = match bounded {
             Ok(check) => check,
@@ -709,8 +685,7 @@ fn certified_attempts(
         }
     }
     // No attempt was proven: the predicted rows' command (both passes and, with a declared
-    // box, their robust margin; the margins that tightened the attempts may be stale),
-    // reported with why the first attempt's bound failed.
+    // box, their robust margin; the margins that tightened the attempts may be stale).
     let Some(ws) = controller.certified.as_mut() else {
         return controller.fallback(InvalidState::NonFiniteModel);
     };
@@ -722,11 +697,139 @@ fn certified_attempts(
         controller.rows[r * nq..(r + 1) * nq].fill(0.0);
         controller.rhs[r] = INACTIVE;
     }
-    match super::sampled_filter(model, controller, q, qd) {
+    let status = super::sampled_filter(model, controller, q, qd);
+    if !matches!(status, TickStatus::Filtered | TickStatus::Relaxed) {
+        return status;
+    }
+    // Then the line from that command to the backup, the command that holds the state
+    // (`u = 0`: the tick's acceleration is the damping's alone): the first of its points
+    // whose bound proves it and that meets the input limits.
+    if backup(model, controller, q, qd, started, mark, split) {
+        return TickStatus::Filtered;
+    }
+    // None: the predicted rows' command, reported with why the first attempt's bound failed.
+    match status {
         TickStatus::Filtered => outcome,
         status => status,
     }
 }
+
+/// The bound of the command `ws.center` (`u`, with `controller.tau` its `τ`): the
+/// correction, the linear cells, the error bound on the coarse partition first where it
+/// has been proving the ticks, then on the fine one (the same command, rows and
+/// correction: only the enclosures' grouping differs), and the barriers' check.
+fn bound_command(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+    mark: &mut Instant,
+    split: &mut CertifiedSplit,
+) -> Result<Check, Uncertified> {
+    let Some(ws) = controller.certified.as_mut() else {
+        return Err(Uncertified::Domain);
+    };
+    let dynamics = &controller.dynamics;
+    let inverse_mass = &controller.inverse_mass;
+    let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
+    let mut bounded = correction(model, ws, inverse_mass, mass, nonlinear, q).map(|()| {
+        linear_cells(model, ws, inverse_mass, mass);
+        split.prediction += lap(mark);
+        Check::Below
+    });
+    if bounded.is_ok() {
+        for coarse in [true, false] {
+            let Some(ws) = controller.certified.as_mut() else {
+                return Err(Uncertified::Domain);
+            };
+            if coarse && !(ws.coarse_first && ws.coarse_groups != ws.groups) {
+                continue;
+            }
+            ws.coarse = coarse;
+            let dynamics = &controller.dynamics;
+            let (mass, nonlinear) = (&dynamics.mass_matrix, &dynamics.nonlinear);
+            bounded = error_bounds(model, ws, &controller.inverse_mass, mass, nonlinear, q)
+                .map(|()| certify(model, controller, q, qd));
+            if let Some(ws) = controller.certified.as_mut() {
+                ws.note_partition(coarse, bounded == Ok(Check::Proven));
+            }
+            if bounded == Ok(Check::Proven) {
+                break;
+            }
+        }
+    }
+    bounded
+}
+
+/// Whether a point of the line from the predicted rows' command `controller.tau` to the
+/// backup `u = 0` (`τ = n(q₀, q̇₀) + K q₀`: the tick's acceleration is the damping's alone,
+/// `M q̈ = −D q̇₀`) is proven over the hold and meets the input limits, trying
+/// [`BACKUP_STEPS`] in turn (none after the compute budget, counted from `started`); the
+/// first that is becomes `controller.tau`, else it is left as it was. The proof is the same bound as for any command (`certify`), so the statement of
+/// docs/model.md §5 covers it; what the backup gives up is the nominal command, for this
+/// tick. Where the QP's rows have no common point (the barriers of a crowded state pull
+/// the command apart) or its command cannot be proven, the state can often still be held.
+#[allow(clippy::too_many_arguments)]
+fn backup(
+    model: &Model,
+    controller: &mut Controller,
+    q: &[f64],
+    qd: &[f64],
+    started: Instant,
+    mark: &mut Instant,
+    split: &mut CertifiedSplit,
+) -> bool {
+    let nq = controller.nq;
+    let Some(ws) = controller.certified.as_mut() else {
+        return false;
+    };
+    ws.backup_tau.copy_from_slice(&controller.tau);
+    let rows = controller.rows.len() / nq;
+    let limits_start = rows - controller.settings.input_limits.1.len();
+    let mut proven = false;
+    for (step, &lambda) in BACKUP_STEPS.iter().enumerate() {
+        // A loop with a deadline: no step starts after the attempts' budget.
+        if started.elapsed().as_secs_f64() > controller.compute_budget {
+            break;
+        }
+        let Some(ws) = controller.certified.as_mut() else {
+            return false;
+        };
+        for i in 0..nq {
+            ws.center[i] = lambda * (ws.backup_tau[i] - ws.offset[i]);
+            controller.tau[i] = ws.offset[i] + ws.center[i];
+        }
+        let within = (limits_start..rows).all(|r| {
+            dot(&controller.rows[r * nq..(r + 1) * nq], &controller.tau) >= controller.rhs[r]
+        });
+        if !within {
+            continue;
+        }
+        // Without the margins of the attempts (their rows are the certified layout's).
+        ws.have_last = false;
+        proven = bound_command(model, controller, q, qd, mark, split) == Ok(Check::Proven);
+        split.bound += lap(mark);
+        if proven {
+            split.backups += u64::from(step > 0);
+            break;
+        }
+    }
+    let Some(ws) = controller.certified.as_mut() else {
+        return false;
+    };
+    // The next tick's first rows start without margins: these were bounded against the
+    // predicted rows' layout.
+    ws.have_last = false;
+    ws.proven = proven;
+    if !proven {
+        controller.tau.copy_from_slice(&ws.backup_tau);
+    }
+    proven
+}
+
+/// The points of the line from the predicted rows' command (`1`) to the backup (`0`) that
+/// [`backup`] tries, in order.
+const BACKUP_STEPS: [f64; 3] = [1.0, 0.5, 0.0];
 
 /// Attempts at a command whose bound holds.
 const ATTEMPTS: usize = 5;
