@@ -299,6 +299,7 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         let path = out.join(softcbf::mcap_log::FILE_NAME);
         let log = softcbf::mcap_log::write_simulation(&path, &main, comparison.as_ref(), &model)
             .map_err(|e| e.to_string())?;
+        console.say(&log.line());
         written.push(log.path);
     }
     if args.view {

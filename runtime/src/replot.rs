@@ -272,7 +272,7 @@ fn facts_of(
     let summary_path = summary_path.to_path_buf();
     let part = match summary.get("comparison") {
         Some(comparison) if is_comparison => comparison,
-        _ => &summary,
+        _ => summary,
     };
     let controller = part
         .get("controller")

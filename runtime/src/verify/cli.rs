@@ -603,6 +603,7 @@ fn replay_command(args: ReplayArgs, console: &mut Console) -> Result<u8, String>
         let path = args.out.join(crate::mcap_log::FILE_NAME);
         let log = crate::mcap_log::write_simulation(&path, &run, None, &model)
             .map_err(|e| e.to_string())?;
+        console.say(&log.line());
         written.push(log.path);
     }
     console.say(&one_line(&run.summary));

@@ -1248,7 +1248,7 @@ fn mcap_logs_identify_as_their_directories() {
         },
     )
     .unwrap();
-    let error = read_logs(&[bare.clone()], &expected)
+    let error = read_logs(std::slice::from_ref(&bare), &expected)
         .unwrap_err()
         .to_string();
     assert!(
