@@ -330,11 +330,14 @@ fn controller_from_status(record: &Record) -> Option<&'static str> {
 /// from its `status` column), with `, hardware` for a log of `softcbf run`; else the file
 /// name.
 fn title_for(file: &Path, record: &Record, facts: &RunFacts) -> String {
-    let controller = facts
-        .controller
-        .clone()
-        .or_else(|| controller_from_status(record).map(str::to_string));
     let hardware = is_hardware_log(record);
+    // (A trajectory of `simulate` has a status column too, but its title is its file's.)
+    let controller = facts.controller.clone().or_else(|| {
+        hardware
+            .then(|| controller_from_status(record))
+            .flatten()
+            .map(str::to_string)
+    });
     match controller {
         Some(controller) => {
             let title = controller_title(&controller).to_string();
