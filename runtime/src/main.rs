@@ -297,9 +297,10 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
         .map_err(|e| e.to_string())?;
     if args.mcap {
         let path = out.join(softcbf::mcap_log::FILE_NAME);
-        let summary = serde_json::to_value(&main.summary).map_err(|e| e.to_string())?;
-        softcbf::mcap_log::write_mcap(&path, &main, comparison.as_ref(), &summary)?;
-        written.push(path);
+        let log = softcbf::mcap_log::write_simulation(&path, &main, comparison.as_ref(), &model)
+            .map_err(|e| e.to_string())?;
+        console.say(&log.line());
+        written.push(log.path);
     }
     if args.view {
         let path = out.join(softcbf::view::FILE_NAME);

@@ -70,13 +70,7 @@ pub fn write_outputs(
         written.push(path);
     }
 
-    let mut summary = serde_json::to_value(&main.summary).unwrap_or_default();
-    if let (Some(pd), Some(object)) = (comparison, summary.as_object_mut()) {
-        object.insert(
-            "comparison".to_string(),
-            serde_json::to_value(&pd.summary).unwrap_or_default(),
-        );
-    }
+    let summary = summary_value(main, comparison);
     let summary_path = out_dir.join("summary.json");
     let text = serde_json::to_string_pretty(&json!(summary)).unwrap_or_default() + "\n";
     std::fs::write(&summary_path, text).map_err(io_error(&summary_path))?;
@@ -101,6 +95,19 @@ pub fn write_outputs(
         &options,
     )?);
     Ok(written)
+}
+
+/// What `summary.json` holds: the summary of `main`, with the PD+ comparison's under
+/// `comparison`.
+pub fn summary_value(main: &Run, comparison: Option<&Run>) -> serde_json::Value {
+    let mut summary = serde_json::to_value(&main.summary).unwrap_or_default();
+    if let (Some(pd), Some(object)) = (comparison, summary.as_object_mut()) {
+        object.insert(
+            "comparison".to_string(),
+            serde_json::to_value(&pd.summary).unwrap_or_default(),
+        );
+    }
+    summary
 }
 
 /// The one line printed at the end of a run; for a robot with barriers of more than one

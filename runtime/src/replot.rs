@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use serde_json::Value;
 
+use crate::mcap_log::{McapError, is_mcap, read_mcap};
 use crate::model::Model;
 use crate::output::Console;
 use crate::plot::{FigureOptions, PlotError, Split, controller_title, write_figures};
@@ -71,12 +72,16 @@ pub enum ReplotError {
     /// The figures could not be drawn.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// An MCAP log could not be read.
+    #[error(transparent)]
+    Mcap(#[from] McapError),
 }
 
 /// The arguments of `softcbf plot`.
 #[derive(Args, Debug)]
 pub struct PlotArgs {
-    /// Trajectory CSVs of `simulate` or logs of `run`; several are drawn side by side.
+    /// Trajectory CSVs of `simulate` or logs of `run`, or MCAP logs (`run.mcap`: every
+    /// run in it); several are drawn side by side.
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Output directory (default: the directory of the first file).
@@ -218,8 +223,16 @@ struct RunFacts {
 
 /// Reads `summary.json` beside `file`, if there is one, and picks the part about `file`:
 /// the `comparison` object for a `…_pd.csv` file (as `softcbf simulate` writes them), the
-/// whole summary otherwise.
+/// whole summary otherwise. For an MCAP log, the summary it holds, about its first run.
 fn facts_for(file: &Path) -> Result<RunFacts, ReplotError> {
+    if is_mcap(file) {
+        let log = read_mcap(file)?;
+        let first = log.runs.first().map_or("", |(name, _)| name.as_str());
+        return match &log.summary {
+            Some(summary) => facts_of(summary, first == "pd", file),
+            None => Ok(RunFacts::default()),
+        };
+    }
     let summary_path = file
         .parent()
         .unwrap_or_else(|| Path::new(""))
@@ -246,9 +259,20 @@ fn facts_for(file: &Path) -> Result<RunFacts, ReplotError> {
         .file_stem()
         .and_then(|s| s.to_str())
         .is_some_and(|stem| stem.ends_with("_pd"));
+    facts_of(&summary, is_comparison, &summary_path)
+}
+
+/// What `summary` (summary.json's object, read from `summary_path`) says about its run, or
+/// with `is_comparison` about its PD+ comparison when it has one.
+fn facts_of(
+    summary: &Value,
+    is_comparison: bool,
+    summary_path: &Path,
+) -> Result<RunFacts, ReplotError> {
+    let summary_path = summary_path.to_path_buf();
     let part = match summary.get("comparison") {
         Some(comparison) if is_comparison => comparison,
-        _ => &summary,
+        _ => summary,
     };
     let controller = part
         .get("controller")
@@ -306,11 +330,14 @@ fn controller_from_status(record: &Record) -> Option<&'static str> {
 /// from its `status` column), with `, hardware` for a log of `softcbf run`; else the file
 /// name.
 fn title_for(file: &Path, record: &Record, facts: &RunFacts) -> String {
-    let controller = facts
-        .controller
-        .clone()
-        .or_else(|| controller_from_status(record).map(str::to_string));
     let hardware = is_hardware_log(record);
+    // (A trajectory of `simulate` has a status column too, but its title is its file's.)
+    let controller = facts.controller.clone().or_else(|| {
+        hardware
+            .then(|| controller_from_status(record))
+            .flatten()
+            .map(str::to_string)
+    });
     match controller {
         Some(controller) => {
             let title = controller_title(&controller).to_string();
@@ -340,7 +367,8 @@ pub(crate) struct Runs {
     pub heading: Option<String>,
 }
 
-/// Reads `files` (trajectory CSVs or hardware logs) with the `summary.json` beside each;
+/// Reads `files` (trajectory CSVs, hardware logs or MCAP logs, every run in one) with the
+/// `summary.json` beside each (an MCAP log holds its own);
 /// with `model`, the barrier labels and their modules come from that robot instead of
 /// the files' headers (for logs written before the headers named them). Refuses files
 /// whose numbers of coordinates or barriers differ from the first's or the model's.
@@ -350,9 +378,25 @@ pub(crate) fn read_runs(files: &[PathBuf], model: Option<&Model>) -> Result<Runs
     let mut titles = Vec::with_capacity(files.len());
     let mut set_point = None;
     let mut heading = None;
+    // Every run of every file: a CSV holds one, an MCAP log one per run in it.
+    let mut runs: Vec<(PathBuf, Record, RunFacts)> = Vec::with_capacity(files.len());
     for file in files {
-        let mut record = Record::read_csv(file)?;
-        let facts = facts_for(file)?;
+        if is_mcap(file) {
+            let log = read_mcap(file)?;
+            for (name, record) in log.runs {
+                let facts = match &log.summary {
+                    Some(summary) => facts_of(summary, name == "pd", file)?,
+                    None => RunFacts::default(),
+                };
+                runs.push((file.clone(), record, facts));
+            }
+        } else {
+            runs.push((file.clone(), Record::read_csv(file)?, facts_for(file)?));
+        }
+    }
+    let files: Vec<PathBuf> = runs.iter().map(|(file, ..)| file.clone()).collect();
+    for (file, mut record, facts) in runs {
+        let file = &file;
         if let Some(model) = model {
             apply_robot(file, &mut record, model)?;
         }

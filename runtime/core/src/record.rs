@@ -50,6 +50,7 @@
 //! ```
 
 mod csv;
+pub mod status;
 
 use std::path::PathBuf;
 

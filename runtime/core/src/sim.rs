@@ -2,7 +2,8 @@
 //! its command is held (zero-order hold) while the plant is integrated to the next tick.
 //!
 //! One run fills a [`Record`] (one row per tick, the last at `t = duration`, whose command is
-//! computed and logged but not applied) and a [`RunSummary`]. With a record period
+//! computed and logged but not applied; each row ends with the tick's `status` and `reason`,
+//! [`crate::record::status`]) and a [`RunSummary`]. With a record period
 //! ([`Scenario::record_period`]) the plant is integrated from one recorded instant to the
 //! next and rows between ticks hold the plant's state, the barriers the controller's model
 //! gives there, and the held `τ` and the tick's `τ_nom`; the lowest barrier is taken over
@@ -28,7 +29,7 @@ use crate::integrator::IntegratorError;
 use crate::model::{Model, ModelError};
 use crate::noise::standard_normal;
 use crate::plant::Plant;
-use crate::record::{Columns, Record, RecordError, Row};
+use crate::record::{Columns, Record, RecordError, Row, status};
 use crate::reference::ReferenceSignal;
 use crate::reference::ReferenceSpec;
 use crate::scenario::{Scenario, between_ticks, structure_difference};
@@ -520,7 +521,11 @@ pub fn simulate(
     let between = record_period.map_or(0, |r| between_ticks(period, r));
     let offset = |j: usize| j as f64 * record_period.unwrap_or(period);
     let rows = ticks.saturating_mul(between + 1).saturating_add(1);
-    let mut record = Record::for_columns(Columns::for_model(model, &[])?, rows);
+    // The tick's status and its reason (`record::status`), held by the rows after it.
+    let mut record = Record::for_columns(
+        Columns::for_model(model, &[status::STATUS, status::REASON])?,
+        rows,
+    );
     let table = model.generated.barrier_table();
     let mut between_barriers = vec![0.0; nb];
 
@@ -623,6 +628,8 @@ pub fn simulate(
             barriers,
             t,
         );
+        let (status_code, reason_code) = status::codes(status);
+        let status_columns = [status_code, reason_code];
         let applied = if k < ticks { controller.tau() } else { &[][..] };
         max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
         record.push_row(&Row {
@@ -632,7 +639,7 @@ pub fn simulate(
             tau: controller.tau(),
             tau_nom: controller.tau_nom(),
             b: barriers,
-            extra: &[],
+            extra: &status_columns,
         })?;
         if k == ticks {
             break;
@@ -687,7 +694,7 @@ pub fn simulate(
                 tau: controller.tau(),
                 tau_nom: controller.tau_nom(),
                 b: &between_barriers,
-                extra: &[],
+                extra: &status_columns,
             })?;
         }
         if k % report_every == 0 {

@@ -38,9 +38,11 @@ def test_simulate_reproduces_the_command_line(args, kwargs, softcbf_bin, tmp_pat
     header, table = read_csv(tmp_path / "trajectory.csv")
     result = softcbf.simulate(**kwargs)
     assert result.columns == header
-    # t, then q, q̇, τ, τ_nom, then one column per barrier of the model's table.
+    # t, then q, q̇, τ, τ_nom, then one column per barrier of the model's table, then the
+    # tick's status and its reason.
     nq, nb = 6, len(result.barrier_labels)
-    assert len(header) == 1 + 4 * nq + nb
+    assert len(header) == 1 + 4 * nq + nb + 2
+    assert header[-2:] == ["status", "reason"]
     assert same_bits(result.t, table[:, 0])
     assert same_bits(result.q, table[:, 1:1 + nq])
     assert same_bits(result.qd, table[:, 1 + nq:1 + 2 * nq])

@@ -206,6 +206,10 @@ pub struct RunArgs {
     /// Directory for the log and figures.
     #[arg(long, default_value = "out/run")]
     pub out: PathBuf,
+    /// Also write the run as an MCAP log, `run.mcap`, after it ends (from trajectory.csv,
+    /// summary.json and hardware.json; README.md, "MCAP logs").
+    #[arg(long)]
+    pub mcap: bool,
     /// Baud rate (bit/s) (default: the robot file's).
     #[arg(long, allow_negative_numbers = true)]
     pub baud: Option<i64>,
@@ -784,10 +788,23 @@ pub fn run(args: RunArgs, console: &mut Console) -> Result<u8, String> {
         _ => None,
     };
     let summarized = write_summary(&args.out, &used, set_point, &summary, &limits, latency_ms);
+    // The MCAP log from the files just written (the CSV stays the log a crash leaves whole).
+    let mcap = match (&logged, &summarized) {
+        (Ok(_), Ok(_)) if args.mcap => Some(
+            crate::mcap_log::write_directory(&args.out, &model)
+                .map(|written| vec![written.path])
+                .map_err(|e| e.to_string()),
+        ),
+        (_, _) if args.mcap => Some(Err(
+            "not written: the log or the summary it is made from is missing".to_string(),
+        )),
+        _ => None,
+    };
     let mut files = Vec::new();
     for (written, what) in [
         (logged, "the log or figures"),
         (summarized.map(|path| vec![path]), "the summary"),
+        (mcap.unwrap_or(Ok(Vec::new())), "the MCAP log"),
     ] {
         match written {
             Ok(written) => files.extend(written),

@@ -28,6 +28,7 @@ pub trait RunLog {
 /// |---|---|
 /// | `fresh` | 1: the command came from this tick's reading |
 /// | `status` | −1 no reading, 0 unfiltered, 1 filtered, 2 relaxed, 3 QP failed, 4 invalid state, 5 uncertified |
+/// | `reason` | why an invalid or uncertified tick was (0: no reason; the codes of [`crate::record::status`]) |
 /// | `attempts` | sync reads this tick |
 /// | `comm_errors` | ticks in a row without a reading (held) |
 /// | `read [us]`, `compute [us]`, `write [us]` | bus wait, software, write |
@@ -48,8 +49,8 @@ pub trait RunLog {
 ///
 /// `q`, `q̇` and `b` are at the state read; a command reaches the servos `compute + write`
 /// after `t`. Logs written before `hold_excess [us]` (or the identification columns
-/// `sampled [us]`, `step`, `rest`, `I …`) existed lack them and read as well (columns are
-/// found by name).
+/// `sampled [us]`, `step`, `rest`, `I …`, or `reason`) existed lack them and read as well
+/// (columns are found by name).
 pub fn extra_columns(servos: usize, coordinates: &[String]) -> Vec<String> {
     let mut names: Vec<String> = Extra::ALL.iter().map(|c| c.name().to_string()).collect();
     names.extend((0..servos).map(|s| format!("f module {} tendon {} [N]", s / 3 + 1, s % 3 + 1)));
@@ -73,6 +74,7 @@ pub fn current_columns(servos: usize) -> Vec<String> {
 pub enum Extra {
     Fresh,
     Status,
+    Reason,
     Attempts,
     CommErrors,
     Read,
@@ -94,9 +96,10 @@ pub enum Extra {
 
 impl Extra {
     /// Every fixed extra column, in the order of the log.
-    pub const ALL: [Extra; 19] = [
+    pub const ALL: [Extra; 20] = [
         Extra::Fresh,
         Extra::Status,
+        Extra::Reason,
         Extra::Attempts,
         Extra::CommErrors,
         Extra::Read,
@@ -126,7 +129,8 @@ impl Extra {
     pub const fn name(self) -> &'static str {
         match self {
             Extra::Fresh => "fresh",
-            Extra::Status => "status",
+            Extra::Status => crate::record::status::STATUS,
+            Extra::Reason => crate::record::status::REASON,
             Extra::Attempts => "attempts",
             Extra::CommErrors => "comm_errors",
             Extra::Read => "read [us]",
@@ -233,7 +237,7 @@ mod tests {
         }
         // The header as the table above lists it: the fixed columns, then tensions,
         // predicted coordinates and currents.
-        assert_eq!(names[..3], ["fresh", "status", "attempts"]);
+        assert_eq!(names[..4], ["fresh", "status", "reason", "attempts"]);
         assert_eq!(names[FIXED_EXTRA - 1], "rest");
         assert_eq!(names[FIXED_EXTRA], "f module 1 tendon 1 [N]");
         assert_eq!(names[FIXED_EXTRA + 6], "qpred dx1 [m]");

@@ -57,6 +57,7 @@ use crate::integrator::{IntegratorError, Tolerances};
 use crate::model::Model;
 use crate::plant::Plant;
 use crate::protocol::{Bus, BusCounters};
+use crate::record::status;
 use crate::sim::{BarrierMinimum, LowestByKind};
 
 pub use crate::hardware::bus_check::RateRule;
@@ -133,17 +134,6 @@ const WATCHDOG_MARGIN: f64 = 0.8;
 
 /// Sync-read retries allowed for the safe start's reading (torque is still off).
 const START_READ_RETRIES: u32 = 9;
-
-fn status_code(status: TickStatus) -> f64 {
-    match status {
-        TickStatus::Unfiltered => 0.0,
-        TickStatus::Filtered => 1.0,
-        TickStatus::Relaxed => 2.0,
-        TickStatus::QpFailed => 3.0,
-        TickStatus::InvalidState(_) => 4.0,
-        TickStatus::Uncertified(_) => 5.0,
-    }
-}
 
 /// The loop's preallocated workspace.
 struct Workspace<'m> {
@@ -742,7 +732,7 @@ fn control_loop<P: ServoPort>(
                     summary.lowest_by_kind.observe(barrier_table, j, value, t);
                 }
                 summary.max_compute = summary.max_compute.max(timing.compute.as_secs_f64());
-                (true, status_code(tick_status))
+                (true, status::codes(tick_status))
             }
             Err(error) => {
                 consecutive += 1;
@@ -754,7 +744,7 @@ fn control_loop<P: ServoPort>(
                         false,
                         t,
                         controller,
-                        -1.0,
+                        (status::NO_READING, status::NO_REASON),
                         io,
                         consecutive,
                         timing,
@@ -765,7 +755,7 @@ fn control_loop<P: ServoPort>(
                         last_error: error.to_string(),
                     };
                 }
-                (false, -1.0)
+                (false, (status::NO_READING, status::NO_REASON))
             }
         };
         let end = Instant::now();
@@ -865,7 +855,7 @@ fn push_row(
     fresh: bool,
     t: f64,
     controller: &Controller,
-    status: f64,
+    (status, reason): (f64, f64),
     io: &ServoIo,
     consecutive: u32,
     timing: TickTiming,
@@ -876,6 +866,7 @@ fn push_row(
         ws.extra[column.at()] = match column {
             Extra::Fresh => f64::from(u8::from(fresh)),
             Extra::Status => status,
+            Extra::Reason => reason,
             Extra::Attempts => f64::from(io.attempts()),
             Extra::CommErrors => f64::from(consecutive),
             Extra::Read => us(timing.read),

@@ -332,7 +332,7 @@ impl<L: RunLog> RunLog for StatusLine<L> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hardware::log::extra_columns;
+    use crate::hardware::log::{FIXED_EXTRA, extra_columns};
 
     #[test]
     fn the_columns_read_are_the_status_the_attempts_and_the_overrun() {
@@ -358,7 +358,7 @@ mod tests {
             start: None,
         };
         let q = [0.0; 3];
-        let mut extra = [0.0; 19];
+        let mut extra = [0.0; FIXED_EXTRA];
         let mut lines = Vec::new();
         // (t, step, rest): step 0 comes to rest for two rows, step 1 never does.
         for (t, step, rest) in [
@@ -398,7 +398,7 @@ mod tests {
     fn rows_are_counted_by_status_attempts_and_barriers() {
         let mut counts = StatusCounts::new();
         let q = [0.0; 3];
-        let mut extra = [0.0; 9];
+        let mut extra = [0.0; FIXED_EXTRA];
         // (status, attempts, overrun, barrier)
         let rows = [
             (-1.0, 3.0, 1.0, f64::NAN),

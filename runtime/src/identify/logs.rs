@@ -16,7 +16,8 @@ use crate::hardware::log::{Extra, current_columns};
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::run_loop::command_wire_time;
 use crate::hardware_description::Hardware;
-use crate::record::{TIME, coordinate_names};
+use crate::mcap_log::{is_mcap, read_mcap};
+use crate::record::{TIME, as_strs, coordinate_names};
 
 use super::IdentifyError;
 
@@ -143,7 +144,13 @@ pub fn read_logs(dirs: &[PathBuf], expected: &Expected<'_>) -> Result<Vec<Log>, 
 /// Reads one run directory: `hardware.json` (required: the hardware description the log was
 /// taken with, which must be the robot's), `summary.json` (if present: the robot's name
 /// and the experiment) and `trajectory.csv`.
+///
+/// `dir` may also be an MCAP log of such a run (`run.mcap`, as `softcbf run --mcap` writes
+/// it), which holds all three: [`read_mcap_log`].
 pub fn read_log(dir: &Path, expected: &Expected<'_>) -> Result<Log, IdentifyError> {
+    if dir.is_file() && is_mcap(dir) {
+        return read_mcap_log(dir, expected);
+    }
     let file = dir.join("trajectory.csv");
     if !dir.is_dir() {
         return Err(IdentifyError::Io {
@@ -168,9 +175,23 @@ pub fn read_log(dir: &Path, expected: &Expected<'_>) -> Result<Log, IdentifyErro
 /// (commands were timed on the wire at it).
 fn read_description(dir: &Path, expected: &Expected<'_>) -> Result<u32, IdentifyError> {
     let log = LogDescription::read(dir)?;
+    check_description(
+        &log,
+        &dir.join(crate::hardware::log_description::FILE_NAME),
+        expected,
+    )
+}
+
+/// Checks a log's description `log` (read from `file`) against the robot's; returns the
+/// run's baud rate.
+fn check_description(
+    log: &LogDescription,
+    file: &Path,
+    expected: &Expected<'_>,
+) -> Result<u32, IdentifyError> {
     if let Some(difference) = log.first_difference(&expected.description) {
         return Err(IdentifyError::DifferentRobot {
-            file: dir.join(crate::hardware::log_description::FILE_NAME),
+            file: file.to_path_buf(),
             what: format!(
                 "the log was taken with {} = {}, {} has {}; its readings and currents mean                  other lengths and tensions under this file (identify with the robot file                  the log was taken with, {})",
                 difference.field,
@@ -206,6 +227,17 @@ fn read_summary(
             file: path.clone(),
             message: format!("line {}: not valid JSON: {error}", error.line()),
         })?;
+    summary_kind(&value, &path, expected)
+}
+
+/// The experiment of a run's summary `value` (read from `path`), after checking its
+/// robot's name.
+fn summary_kind(
+    value: &serde_json::Value,
+    path: &Path,
+    expected: &Expected<'_>,
+) -> Result<Option<ExperimentKind>, IdentifyError> {
+    let path = path.to_path_buf();
     if let Some(name) = value.get("robot").and_then(|v| v.as_str())
         && name != expected.name
     {
@@ -269,6 +301,26 @@ fn read_trajectory(
         what: "the header is not UTF-8 text".into(),
     })?;
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let layout = layout_of(&names, file, expected, baud)?;
+    let header_end = buffer.len() as u64;
+    drop(reader);
+    let size = std::fs::metadata(file).map_err(io)?.len();
+    let ranges = chunk_ranges(file, header_end, size, chunk_bytes.max(1)).map_err(io)?;
+    let parts = super::parallel_map(ranges.len(), |k| {
+        parse_chunk(file, &layout, ranges[k].clone())
+    });
+    assemble(file, expected, parts)
+}
+
+/// Where the columns identification reads stand among `names` (a log's header, read
+/// from `file`), after checking that the log is of the robot `expected` describes; its
+/// commands were timed on the wire at `baud` \[bit/s\].
+fn layout_of(
+    names: &[&str],
+    file: &Path,
+    expected: &Expected<'_>,
+    baud: u32,
+) -> Result<Layout, IdentifyError> {
     let width = names.len();
 
     // A different robot first: its columns would be missing for the wrong reason.
@@ -328,8 +380,6 @@ fn read_trajectory(
         slot[column] = k;
     }
 
-    let header_end = buffer.len() as u64;
-    drop(reader);
     let mut order: Vec<(usize, usize)> = slot
         .iter()
         .enumerate()
@@ -337,20 +387,24 @@ fn read_trajectory(
         .map(|(column, k)| (column, *k))
         .collect();
     order.sort_unstable();
-    let layout = Layout {
+    Ok(Layout {
         order,
         wanted: wanted.iter().map(|w| (*w).to_string()).collect(),
         width,
         nq: expected.nq,
         register_end: f64::from(i16::MAX) * expected.hardware.current_unit * (1.0 - 1e-9),
         wire: command_wire_time(servos, baud),
-    };
-    let size = std::fs::metadata(file).map_err(io)?.len();
-    let ranges = chunk_ranges(file, header_end, size, chunk_bytes.max(1)).map_err(io)?;
-    let parts = super::parallel_map(ranges.len(), |k| {
-        parse_chunk(file, &layout, ranges[k].clone())
-    });
+    })
+}
 
+/// The log of `file` from its readings, parsed in `parts` (each with its number of lines,
+/// in order), checked as a whole: readings in time order, not mostly saturated.
+fn assemble(
+    file: &Path,
+    expected: &Expected<'_>,
+    parts: Vec<(Result<Chunk, ChunkError>, usize)>,
+) -> Result<Log, IdentifyError> {
+    let servos = 3 * expected.hardware.modules.len();
     let mut log = Log {
         dir: PathBuf::new(),
         file: file.to_path_buf(),
@@ -528,7 +582,7 @@ fn parse_lines(
     let mut handle = File::open(file).map_err(io)?;
     handle.seek(SeekFrom::Start(range.start)).map_err(io)?;
     let mut reader = BufReader::with_capacity(1 << 20, handle.take(range.end - range.start));
-    let (nq, wanted, width) = (layout.nq, &layout.wanted, layout.width);
+    let (wanted, width) = (&layout.wanted, layout.width);
     let mut values = vec![f64::NAN; wanted.len()];
     let mut buffer = Vec::with_capacity(4096);
     let mut chunk = Chunk {
@@ -583,6 +637,21 @@ fn parse_lines(
                 what: format!("{fields} fields, the header has {width}"),
             });
         }
+        take_row(&values, line_number, layout, &mut chunk)?;
+    }
+    Ok(chunk)
+}
+
+/// Takes one row into `chunk`: its wanted `values` (in the order of `layout.wanted`),
+/// from line `line_number` of its file.
+fn take_row(
+    values: &[f64],
+    line_number: usize,
+    layout: &Layout,
+    chunk: &mut Chunk,
+) -> Result<(), ChunkError> {
+    let (nq, wanted) = (layout.nq, &layout.wanted);
+    {
         chunk.rows += 1;
         let non_finite = |k: usize| ChunkError::At {
             line: line_number,
@@ -595,7 +664,7 @@ fn parse_lines(
         chunk.end = chunk.end.max(values[T]);
         let fresh = values[FRESH];
         if fresh == 0.0 {
-            continue;
+            return Ok(());
         }
         if fresh != 1.0 {
             return Err(ChunkError::At {
@@ -629,7 +698,78 @@ fn parse_lines(
             .push(values[T] + (values[COMPUTE] + values[WRITE]) * 1e-6 + layout.wire);
         chunk.current.extend_from_slice(currents);
     }
-    Ok(chunk)
+    Ok(())
+}
+
+/// Reads an MCAP log of a run (`softcbf run --mcap`): its hardware description and summary
+/// from its metadata (checked as `hardware.json` and `summary.json` are), its rows through
+/// [`crate::mcap_log::read_mcap`] (the CSV's, value for value), each row taken as the
+/// CSV's line is. A row's line in errors and in [`Log::line`] is the line it has in the
+/// `trajectory.csv` the log was written with (its message number + 1), so that the log
+/// gives the same [`Log`] as that file.
+pub fn read_mcap_log(file: &Path, expected: &Expected<'_>) -> Result<Log, IdentifyError> {
+    let io = |message: String| IdentifyError::Io {
+        file: file.to_path_buf(),
+        message,
+    };
+    let read = read_mcap(file).map_err(|e| io(e.to_string()))?;
+    let description: LogDescription = match &read.hardware {
+        Some(value) => serde_json::from_value(value.clone()).map_err(|e| {
+            io(format!(
+                "metadata `hardware`: not a hardware description of softcbf: {e}"
+            ))
+        })?,
+        None => {
+            return Err(io(
+                "no metadata `hardware`: the hardware description the log was \
+                 taken with is not in it (is this a log of `softcbf run --mcap`?)"
+                    .into(),
+            ));
+        }
+    };
+    let baud = check_description(&description, file, expected)?;
+    let kind = match &read.summary {
+        Some(summary) => summary_kind(summary, file, expected)?,
+        None => None,
+    };
+    let Some((_, record)) = read.runs.first() else {
+        return Err(io("no run in it".into()));
+    };
+    let columns = record.columns();
+    let names: Vec<String> = (0..columns.width())
+        .filter_map(|k| columns.name(k))
+        .collect();
+    let layout = layout_of(&as_strs(&names), file, expected, baud)?;
+    let mut chunk = Chunk {
+        end: f64::NEG_INFINITY,
+        ..Chunk::default()
+    };
+    let mut values = vec![f64::NAN; layout.wanted.len()];
+    let mut row_values = Vec::with_capacity(columns.width());
+    for (index, row) in record.rows().enumerate() {
+        row_values.clear();
+        row_values.extend(row.values());
+        for &(column, k) in &layout.order {
+            values[k] = row_values[column];
+        }
+        // The header is line 1 of the CSV: row `index` is line `index + 2`, line
+        // `index + 1` after it, as a chunk counts them.
+        let result = take_row(&values, index + 1, &layout, &mut chunk);
+        if let Err(error) = result {
+            return Err(assemble(file, expected, vec![(Err(error), 0)])
+                .err()
+                .unwrap_or_else(|| io("a row cannot be used".into())));
+        }
+    }
+    let rows = record.len();
+    let mut log = assemble(file, expected, vec![(Ok(chunk), rows)])?;
+    log.dir = file
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or_else(|| Path::new("."))
+        .to_path_buf();
+    log.kind = kind;
+    Ok(log)
 }
 
 /// Number of commas in `bytes` (vectorizes).

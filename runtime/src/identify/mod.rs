@@ -647,7 +647,8 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub robot: PathBuf,
     /// Run directories of `softcbf run` (`--experiment static`, `dynamic`, or any run),
-    /// each with trajectory.csv and summary.json.
+    /// each with trajectory.csv and summary.json, or their MCAP logs (`run.mcap` of
+    /// `softcbf run --mcap`, which holds all three).
     #[arg(value_name = "LOG_DIR")]
     pub logs: Vec<PathBuf>,
     /// The robot file to write: the input with the identified numbers (and a comment on

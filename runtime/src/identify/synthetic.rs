@@ -15,7 +15,7 @@ use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;
 
 use crate::dynamics::{BarrierTerms, DynamicsWorkspace, model_terms};
-use crate::hardware::log::extra_columns;
+use crate::hardware::log::{Extra, extra_columns};
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::command_wire_time;
@@ -275,27 +275,35 @@ pub fn write_log(
         map.tau_from_tensions(&tensions, &mut tau);
         model_terms(file, &mut ws, &mut barriers, &q, &qd).map_err(|e| e.to_string())?;
         let us = |s: f64| s * 1e6;
-        let fixed = [
-            1.0,
-            0.0,
-            1.0,
-            0.0,
-            us(run.sampled),
-            us(run.compute),
-            us(run.write),
-            0.0,
-            0.0,
-            f64::from(low),
-            f64::from(high),
-            us(run.sampled + run.compute + run.write),
-            us(period),
-            us(period),
-            0.0,
-            1.0,
-            us(run.sampled),
-            phase.step,
-            if phase.rest { 1.0 } else { 0.0 },
-        ];
+        // Every fixed column by name, as the run loop writes them.
+        let fixed = Extra::ALL.map(|column| match column {
+            Extra::Fresh => 1.0,
+            Extra::Status => 0.0,
+            Extra::Reason => 0.0,
+            Extra::Attempts => 1.0,
+            Extra::CommErrors => 0.0,
+            Extra::Read => us(run.sampled),
+            Extra::Compute => us(run.compute),
+            Extra::Write => us(run.write),
+            Extra::Late => 0.0,
+            Extra::Overrun => 0.0,
+            Extra::ClampLow => f64::from(low),
+            Extra::ClampHigh => f64::from(high),
+            Extra::Age => us(run.sampled + run.compute + run.write),
+            Extra::Period => us(period),
+            Extra::Hold => us(period),
+            Extra::HoldExcess => 0.0,
+            Extra::GainScale => 1.0,
+            Extra::Sampled => us(run.sampled),
+            Extra::Step => phase.step,
+            Extra::Rest => {
+                if phase.rest {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+        });
         let (head, rest) = extra.split_at_mut(fixed.len());
         head.copy_from_slice(&fixed);
         rest[..servos].copy_from_slice(&tensions);

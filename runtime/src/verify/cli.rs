@@ -122,6 +122,9 @@ struct ReplayArgs {
     /// Also write an animation of the run, `robot.gif`.
     #[arg(long)]
     animate: bool,
+    /// Also write the run as an MCAP log, `run.mcap` (as `softcbf simulate --mcap`).
+    #[arg(long)]
+    mcap: bool,
 }
 
 /// Runs `softcbf verify`; returns the exit status. A batch runs to its end (for callers
@@ -594,8 +597,15 @@ fn replay_command(args: ReplayArgs, console: &mut Console) -> Result<u8, String>
     let mut progress = crate::output::Progress::new("replay");
     let run = simulate(&model, &scenario, true, &mut |f| progress.update(f))
         .map_err(|e| e.to_string())?;
-    let written =
+    let mut written =
         write_outputs(&args.out, &run, None, &model, args.animate).map_err(|e| e.to_string())?;
+    if args.mcap {
+        let path = args.out.join(crate::mcap_log::FILE_NAME);
+        let log = crate::mcap_log::write_simulation(&path, &run, None, &model)
+            .map_err(|e| e.to_string())?;
+        console.say(&log.line());
+        written.push(log.path);
+    }
     console.say(&one_line(&run.summary));
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
     console.say(&format!("wrote {}", names.join(", ")));

@@ -181,7 +181,7 @@ pub struct RobotData {
 }
 
 /// `x` to the nearest multiple of [`COORDINATE_STEP`] (`None` if not finite).
-fn coordinate(x: f64) -> Option<f64> {
+pub fn coordinate(x: f64) -> Option<f64> {
     let rounded = (x / COORDINATE_STEP).round() * COORDINATE_STEP;
     // Written through the decimal of the step, so the JSON holds the short form.
     rounded

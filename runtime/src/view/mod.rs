@@ -168,7 +168,7 @@ impl Written {
 }
 
 /// `30`, `12.5`, `0.333`: a rate without trailing zeros.
-fn short(x: f64) -> String {
+pub fn short(x: f64) -> String {
     let text = format!("{x:.3}");
     text.trim_end_matches('0').trim_end_matches('.').to_string()
 }

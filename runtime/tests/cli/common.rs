@@ -321,3 +321,48 @@ pub fn status_is(code: i32, expected: i32, output: &str, what: &str) -> bool {
     }
     panic!("{what}: exit {code}, expected {expected}:\n{output}");
 }
+
+/// Reads `dir/run.mcap` back with [`softcbf::mcap_log::read_mcap`] and checks that its
+/// runs are the records of the CSVs beside it (`trajectory.csv` as `run`, and
+/// `trajectory_pd.csv` as `pd` when there), value for value (a NaN as a NaN), and its
+/// metadata summary.json (and hardware.json when there). Returns the log.
+pub fn assert_log_is_the_csvs(dir: &Path, run: &str) -> softcbf::mcap_log::McapLog {
+    use softcbf::record::Record;
+    let log = softcbf::mcap_log::read_mcap(&dir.join("run.mcap"))
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+    let mut expected = vec![(run, "trajectory.csv")];
+    if dir.join("trajectory_pd.csv").exists() {
+        expected.push(("pd", "trajectory_pd.csv"));
+    }
+    let names: Vec<&str> = log.runs.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(
+        names,
+        expected.iter().map(|(name, _)| *name).collect::<Vec<_>>()
+    );
+    for (name, file) in expected {
+        let csv = Record::read_csv(&dir.join(file)).unwrap();
+        let read = log.run(name).unwrap();
+        assert_eq!(read.columns(), csv.columns(), "{name}");
+        assert_eq!(read.len(), csv.len(), "{name}");
+        let same = |a: &f64, b: &f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let differ = read
+            .values()
+            .iter()
+            .zip(csv.values())
+            .position(|(a, b)| !same(a, b));
+        assert_eq!(
+            differ, None,
+            "{name}: the log's values differ from {file}'s"
+        );
+    }
+    let json = |file: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join(file)).unwrap()).unwrap()
+    };
+    assert_eq!(log.summary, Some(json("summary.json")));
+    let hardware = dir
+        .join("hardware.json")
+        .exists()
+        .then(|| json("hardware.json"));
+    assert_eq!(log.hardware, hardware);
+    log
+}

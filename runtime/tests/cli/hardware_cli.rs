@@ -276,6 +276,123 @@ fn a_closed_or_full_standard_output_does_not_stop_the_safe_stop() {
     std::fs::remove_dir_all(&root).unwrap();
 }
 
+/// `softcbf run --mcap` writes `run.mcap` once the run has ended: the log's rows value for
+/// value (NaN where a tick read nothing), summary.json and hardware.json as metadata, the
+/// tensions and goal currents sent in its commands, the QP's status per tick and the robot
+/// in 3-D, stamped in the log's clock; `softcbf plot` draws from it what it draws from the
+/// CSV.
+#[test]
+fn a_run_writes_its_mcap_log_when_asked() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let emulator = Emulator::start(&[]);
+    let out = temp_dir("mcap");
+    let run = start_run(
+        &emulator.port,
+        &out,
+        &["--duration", "1", "--mcap", "--quiet"],
+    );
+    let (code, stdout, stderr) = finish_run(run, "--mcap");
+    // The log is written whatever the verdict a loaded machine gives the run.
+    assert!(matches!(code, 0 | 3 | 4), "{code}:\n{stdout}\n{stderr}");
+    assert_torque_off(&emulator.port, "--mcap");
+    let log_path = out.join("run.mcap");
+    assert!(stdout.contains(&log_path.display().to_string()), "{stdout}");
+    let log = assert_log_is_the_csvs(&out, "filter");
+    let record = log.run("filter").unwrap();
+    let columns = record.columns();
+    let column = |name: &str| columns.index_of(name).unwrap();
+    let statuses: Vec<f64> = record.column(column("status")).collect();
+    let tension = column("f module 1 tendon 1 [N]");
+    let current = column("I module 2 tendon 3 [mA]");
+
+    let bytes = std::fs::read(&log_path).unwrap();
+    let mut counts = std::collections::BTreeMap::<String, usize>::new();
+    let mut last_time = 0;
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let message = message.unwrap();
+        let topic = message.channel.topic.clone();
+        let k = *counts.get(&topic).unwrap_or(&0);
+        *counts.entry(topic.clone()).or_default() += 1;
+        // Written in the order of the log's clock.
+        assert!(message.log_time >= last_time, "{topic}");
+        last_time = message.log_time;
+        let value: serde_json::Value = serde_json::from_slice(&message.data).unwrap();
+        let row = record.row(k);
+        let same = |a: &serde_json::Value, b: f64| match a.as_f64() {
+            Some(a) => a.to_bits() == b.to_bits(),
+            None => a.is_null() && b.is_nan(),
+        };
+        match topic.as_str() {
+            "/filter/qp" => {
+                assert_eq!(value["status_code"].as_f64(), Some(statuses[k]));
+                let row = row.unwrap();
+                assert_eq!(message.log_time, (row.t * 1e9).round() as u64);
+                let name = value["status"].as_str().unwrap();
+                let expected = match statuses[k] {
+                    -1.0 => "no-reading",
+                    1.0 => "filtered",
+                    2.0 => "relaxed",
+                    5.0 => "uncertified",
+                    other => panic!("status {other} in a filtered run"),
+                };
+                assert_eq!(name, expected);
+            }
+            "/filter/commands" => {
+                let row = row.unwrap();
+                let values = row.values().collect::<Vec<f64>>();
+                let tensions = value["tension"].as_array().unwrap();
+                let currents = value["current"].as_array().unwrap();
+                assert_eq!((tensions.len(), currents.len()), (6, 6));
+                assert!(same(&tensions[0], values[tension]));
+                assert!(same(&currents[5], values[current]));
+            }
+            "/filter/scene" => {
+                let entities = value["entities"].as_array().unwrap();
+                assert!(!entities.is_empty());
+            }
+            _ => {}
+        }
+    }
+    for kind in ["joint_states", "commands", "barriers", "qp", "extra"] {
+        assert_eq!(counts[&format!("/filter/{kind}")], record.len(), "{kind}");
+    }
+    // The 3-D scene at 30 frames per second of the run's time (rows at 33 Hz: some
+    // frames fall on the row before, and are left out).
+    let span = record.times().last().unwrap() - record.times().next().unwrap();
+    let frames = counts["/filter/scene"];
+    assert!(
+        frames as f64 >= 0.5 * 30.0 * span && frames as f64 <= 30.0 * span + 2.0,
+        "{frames} frames over {span} s"
+    );
+    assert!(counts["/tf"] > 0);
+
+    let from_csv = out.join("csv");
+    let from_mcap = out.join("mcap");
+    for (file, dir) in [
+        (out.join("trajectory.csv"), &from_csv),
+        (log_path.clone(), &from_mcap),
+    ] {
+        let o = Command::new(BIN)
+            .args([
+                "plot",
+                file.to_str().unwrap(),
+                "--out",
+                dir.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    for figure in ["figure.svg", "robot.svg"] {
+        assert!(
+            std::fs::read(from_csv.join(figure)).unwrap()
+                == std::fs::read(from_mcap.join(figure)).unwrap(),
+            "{figure} from run.mcap differs from the CSV's"
+        );
+    }
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
 #[test]
 fn a_run_below_the_barrier_threshold_exits_unsafe() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());

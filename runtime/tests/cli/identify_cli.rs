@@ -80,7 +80,7 @@ fn the_walk_through_finds_the_true_robot() {
         let run = start_run(
             &emulator.port,
             &out,
-            &["--experiment", kind, "--rate", "100", "--quiet"],
+            &["--experiment", kind, "--rate", "100", "--quiet", "--mcap"],
         );
         let (code, stdout, stderr) = finish_run_within(run, Duration::from_secs(240), kind);
         // A 100 Hz loop needs the bus and a core: a machine loaded by other work may not
@@ -206,4 +206,27 @@ fn the_walk_through_finds_the_true_robot() {
         }
     }
     assert!(dir.join("identify.png").exists());
+
+    // The runs' MCAP logs (`--mcap`) identify as their directories do, to the byte.
+    let from_logs = dir.join("identified-from-mcap.toml");
+    let output = Command::new(BIN)
+        .arg("identify")
+        .arg("--robot")
+        .arg(robot())
+        .args(logs.iter().map(|log| log.join("run.mcap")))
+        .arg("--out")
+        .arg(&from_logs)
+        .arg("--figures")
+        .arg(dir.join("from-mcap"))
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "identify from run.mcap: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(&from_logs).unwrap(),
+        std::fs::read_to_string(&identified).unwrap()
+    );
 }

@@ -34,6 +34,83 @@ fn short_scenario(dir: &Path, seconds: f64) -> PathBuf {
     path
 }
 
+/// `softcbf plot out/run.mcap` draws what `softcbf plot` of the two CSVs beside it draws,
+/// byte for byte (every figure's data and titles the same), and the 3-D view from the
+/// robot the log's own summary names; a file that is no MCAP log, or a cut one, is refused
+/// naming it.
+#[test]
+fn figures_from_the_mcap_log_are_the_figures_from_the_csvs() {
+    let dir = temp_dir("mcap");
+    let scenario = short_scenario(&dir, 0.3);
+    let out = dir.join("out");
+    let run = softcbf(&[
+        "simulate",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--compare",
+        "--mcap",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", text(&run.stderr));
+    let log = out.join("run.mcap");
+    // The log's runs are the CSVs' records, value for value, with the summary beside them.
+    let read = softcbf::mcap_log::read_mcap(&log).unwrap();
+    for (name, csv) in [("filter", "trajectory.csv"), ("pd", "trajectory_pd.csv")] {
+        let record = softcbf::record::Record::read_csv(&out.join(csv)).unwrap();
+        assert_eq!(record.columns().extra_names(), ["status", "reason"]);
+        assert_eq!(read.run(name), Some(&record), "{name}");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(read.summary.as_ref(), Some(&summary));
+    let from_csv = dir.join("csv");
+    let from_mcap = dir.join("mcap");
+    let plot = softcbf(&[
+        "plot",
+        out.join("trajectory.csv").to_str().unwrap(),
+        out.join("trajectory_pd.csv").to_str().unwrap(),
+        "--out",
+        from_csv.to_str().unwrap(),
+    ]);
+    assert!(plot.status.success(), "{}", text(&plot.stderr));
+    // The log alone: summary.json moved away, so the titles and the robot come from it.
+    std::fs::rename(out.join("summary.json"), dir.join("summary.json")).unwrap();
+    let plot = softcbf(&[
+        "plot",
+        log.to_str().unwrap(),
+        "--out",
+        from_mcap.to_str().unwrap(),
+    ]);
+    assert!(plot.status.success(), "{}", text(&plot.stderr));
+    for figure in ["figure.png", "figure.svg", "robot.png", "robot.svg"] {
+        let a = std::fs::read(from_csv.join(figure)).unwrap();
+        let b = std::fs::read(from_mcap.join(figure)).unwrap();
+        assert!(a == b, "{figure} from run.mcap differs from the CSVs'");
+    }
+    // Not an MCAP log by its bytes: read as a CSV, refused naming it.
+    let fake = dir.join("fake.mcap");
+    std::fs::write(&fake, "hello\n").unwrap();
+    let plot = softcbf(&["plot", fake.to_str().unwrap()]);
+    assert!(!plot.status.success());
+    assert!(
+        text(&plot.stderr).contains("fake.mcap"),
+        "{}",
+        text(&plot.stderr)
+    );
+    // A log cut short (a disk that filled): refused naming it, no panic.
+    let bytes = std::fs::read(&log).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let plot = softcbf(&["plot", cut.to_str().unwrap()]);
+    assert_eq!(plot.status.code(), Some(1), "{}", text(&plot.stderr));
+    assert!(
+        text(&plot.stderr).contains("cut.mcap"),
+        "{}",
+        text(&plot.stderr)
+    );
+}
+
 #[test]
 fn figures_come_back_from_the_csvs() {
     let dir = temp_dir("again");

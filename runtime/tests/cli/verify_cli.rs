@@ -233,6 +233,26 @@ fn shards_merged_and_thread_counts_give_the_same_files() {
     let replay = dir.join("replay");
     replayed(scenario, &runs, 5, &replay);
     assert!(replay.join("figure.png").exists() && replay.join("robot.png").exists());
+    // With --mcap, the run as an MCAP log too: the CSV's rows, summary.json's metadata.
+    let logged = dir.join("replay-mcap");
+    let o = softcbf(&[
+        "verify",
+        "replay",
+        "--scenario",
+        scenario,
+        "--run",
+        "5",
+        "--mcap",
+        "--out",
+        logged.to_str().unwrap(),
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 3)),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(text(&o.stdout).contains("run.mcap"), "{}", text(&o.stdout));
+    crate::common::assert_log_is_the_csvs(&logged, "filter");
     // The report, read back through the type that wrote it, writes the same bytes again;
     // it names that command for its worst runs.
     let report = read_report(&one.join("report.json")).unwrap();

@@ -233,7 +233,7 @@ fn paper_set_point_barriers_held_against_the_emulator() {
         "{header}"
     );
     assert!(header.contains(",b module 1 corner 1 [m],"), "{header}");
-    assert!(header.ends_with(",fresh,status,attempts,comm_errors,read [us],compute [us],write [us],late [us],overrun,clamp_low,clamp_high,age [us],period [us],hold [us],hold_excess [us],gain_scale,sampled [us],step,rest,f module 1 tendon 1 [N],f module 1 tendon 2 [N],f module 1 tendon 3 [N],f module 2 tendon 1 [N],f module 2 tendon 2 [N],f module 2 tendon 3 [N],qpred dx1 [m],qpred dy1 [m],qpred dL1 [m],qpred dx2 [m],qpred dy2 [m],qpred dL2 [m],I module 1 tendon 1 [mA],I module 1 tendon 2 [mA],I module 1 tendon 3 [mA],I module 2 tendon 1 [mA],I module 2 tendon 2 [mA],I module 2 tendon 3 [mA]"), "{header}");
+    assert!(header.ends_with(",fresh,status,reason,attempts,comm_errors,read [us],compute [us],write [us],late [us],overrun,clamp_low,clamp_high,age [us],period [us],hold [us],hold_excess [us],gain_scale,sampled [us],step,rest,f module 1 tendon 1 [N],f module 1 tendon 2 [N],f module 1 tendon 3 [N],f module 2 tendon 1 [N],f module 2 tendon 2 [N],f module 2 tendon 3 [N],qpred dx1 [m],qpred dy1 [m],qpred dL1 [m],qpred dx2 [m],qpred dy2 [m],qpred dL2 [m],I module 1 tendon 1 [mA],I module 1 tendon 2 [mA],I module 1 tendon 3 [mA],I module 2 tendon 1 [mA],I module 2 tendon 2 [mA],I module 2 tendon 3 [mA]"), "{header}");
     for (k, row) in out.log.rows.iter().enumerate() {
         assert_eq!(record.row(k).unwrap().q, &row.1[..], "row {k}");
     }

@@ -1191,3 +1191,68 @@ fn family_errors_against_rate_and_noise() {
         }
     }
 }
+
+/// An MCAP log of a run (`softcbf run --mcap`, here written from a synthetic log's
+/// directory as `run` writes it) is read as its directory is: the same readings, lines,
+/// landing times and currents, bit for bit, and identification gives the same numbers; a
+/// log without the hardware description (`simulate --mcap`'s) is refused naming it.
+#[test]
+fn mcap_logs_identify_as_their_directories() {
+    let (file, hardware) = example();
+    let robot = &file.robot;
+    let expected = expected(robot, &hardware);
+    let dir = out_dir("mcap-logs");
+    let dirs = write_experiments(&dir, &TRUE_GAINS);
+    let logs: Vec<PathBuf> = dirs
+        .iter()
+        .map(|d| softcbf::mcap_log::write_directory(d, file).unwrap().path)
+        .collect();
+    let from_dirs = read_logs(&dirs, &expected).unwrap();
+    let from_logs = read_logs(&logs, &expected).unwrap();
+    for ((a, b), path) in from_dirs.iter().zip(&from_logs).zip(&logs) {
+        assert_eq!(b.file, *path);
+        let b = softcbf::identify::Log {
+            file: a.file.clone(),
+            ..b.clone()
+        };
+        // Debug prints every number exactly (NaN as NaN).
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        assert!(a.readings() > 1000);
+    }
+    let one = identify(robot, &from_dirs, &Options::default()).unwrap();
+    let other = identify(robot, &from_logs, &Options::default()).unwrap();
+    let numbers = |id: &Identification| {
+        format!(
+            "{:?}",
+            (&id.fit, &id.predictions, id.rows, id.instants, id.period)
+        )
+    };
+    assert_eq!(numbers(&one), numbers(&other));
+    check_within(&other, 0.02, &TRUE_GAINS);
+
+    // An MCAP log without `hardware` metadata: refused, naming the file and what lacks.
+    let bare = dir.join("bare.mcap");
+    let record = softcbf::record::Record::read_csv(&dirs[0].join("trajectory.csv")).unwrap();
+    let runs = [softcbf::mcap_log::LogRun {
+        name: "filter",
+        title: "filter",
+        record: &record,
+    }];
+    softcbf::mcap_log::write_mcap(
+        &bare,
+        &softcbf::mcap_log::Contents {
+            runs: &runs,
+            summary: &serde_json::Value::Null,
+            hardware: None,
+            model: None,
+        },
+    )
+    .unwrap();
+    let error = read_logs(std::slice::from_ref(&bare), &expected)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("bare.mcap") && error.contains("`hardware`"),
+        "{error}"
+    );
+}

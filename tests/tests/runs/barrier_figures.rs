@@ -315,7 +315,7 @@ fn rows_found_from_the_labels_alone_are_the_same() {
             Columns::named(
                 &softcbf::record::as_strs(&coordinates),
                 &softcbf::record::as_strs(&labels),
-                &[],
+                &softcbf::record::as_strs(filtered.columns().extra_names()),
             )
             .unwrap(),
         )

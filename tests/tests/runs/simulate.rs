@@ -228,3 +228,82 @@ fn malformed_scenarios_name_file_line_and_field() {
             .contains("/nonexistent/scenario.toml: cannot read scenario file")
     );
 }
+
+/// Every row of a run carries its tick's status and reason (`record::status`): counted
+/// over the rows of a run with one row per tick, they are the summary's counts, reasons
+/// included; a row between ticks carries the status of the tick before it.
+#[test]
+fn each_row_carries_its_ticks_status_and_reason() {
+    use softcbf::record::status::{REASON, STATUS, reason_name, status_name};
+    let (model, mut scenario) = paper();
+    scenario.duration = 3.0;
+    let mut seen = std::collections::BTreeSet::new();
+    for (safety, period) in [
+        (SafetyMode::Certified, 0.002),
+        (SafetyMode::Paper, 1.0 / 33.0),
+        (SafetyMode::Certified, 1.0 / 33.0),
+    ] {
+        scenario.controller.safety = safety;
+        scenario.control_period = period;
+        for (filter, record_period) in [(true, None), (false, None), (true, Some(period / 4.0))] {
+            scenario.record_period = record_period;
+            let run = simulate(&model, &scenario, filter, &mut |_| {}).expect("simulation starts");
+            let columns = run.record.columns();
+            let status = columns.index_of(STATUS).expect("a status column");
+            let reason = columns.index_of(REASON).expect("a reason column");
+            let statuses: Vec<f64> = run.record.column(status).collect();
+            let reasons: Vec<f64> = run.record.column(reason).collect();
+            let times: Vec<f64> = run.record.times().collect();
+            if let Some(r) = record_period {
+                // Rows between ticks hold the status of the tick before them.
+                let per_tick = (period / r).round() as usize;
+                for (k, (s, why)) in statuses.iter().zip(&reasons).enumerate() {
+                    let tick = k - k % per_tick;
+                    assert_eq!((*s, *why), (statuses[tick], reasons[tick]), "row {k}");
+                }
+                continue;
+            }
+            let c = &run.summary.counts;
+            assert_eq!(statuses.len(), c.ticks, "{safety:?}");
+            let count = |name: &str| {
+                statuses
+                    .iter()
+                    .filter(|&&s| status_name(s) == Some(name))
+                    .count()
+            };
+            let why = |name: &str| {
+                reasons
+                    .iter()
+                    .filter(|&&r| reason_name(r) == Some(name))
+                    .count()
+            };
+            let context = format!("{safety:?} at {period} s, filter {filter}");
+            assert_eq!(count("unfiltered"), c.unfiltered, "{context}");
+            assert_eq!(count("relaxed"), c.relaxed, "{context}");
+            assert_eq!(count("qp-failed"), c.failed, "{context}");
+            assert_eq!(count("invalid"), c.invalid_state, "{context}");
+            assert_eq!(count("uncertified"), c.uncertified, "{context}");
+            let r = &c.uncertified_reasons;
+            for (name, n) in [
+                ("tube", r.tube),
+                ("domain", r.domain),
+                ("start", r.start),
+                ("bound", r.bound),
+                ("budget", r.budget),
+            ] {
+                assert_eq!(why(name), n, "{context}: {name}");
+            }
+            assert_eq!(
+                count("filtered") + c.relaxed + c.failed + c.uncertified,
+                c.qp_solves,
+                "{context}"
+            );
+            assert!(times.windows(2).all(|w| w[0] < w[1]));
+            for (&s, &r) in statuses.iter().zip(&reasons) {
+                seen.insert((status_name(s), reason_name(r)));
+            }
+        }
+    }
+    println!("statuses seen: {seen:?}");
+    assert!(seen.len() >= 3, "the runs show too few statuses: {seen:?}");
+}

@@ -184,7 +184,8 @@ def identify(
     timing_uncertainty_ms: Optional[float] = None,
 ) -> IdentifyResult:
     """Runs ``softcbf identify``: stiffness, damping and actuator gains of ``robot`` from
-    the run directories ``logs`` (each with trajectory.csv and summary.json), written to
+    the run directories ``logs`` (each with trajectory.csv and summary.json, or its
+    ``run.mcap`` of ``softcbf run --mcap``), written to
     the robot file ``out`` with the figure beside it (or in ``figures``). The GIL is
     released while it fits."""
     status = _run_identify(
