@@ -390,6 +390,35 @@ fn a_run_writes_its_mcap_log_when_asked() {
             "{figure} from run.mcap differs from the CSV's"
         );
     }
+    // The browser view of a hardware run's directory (its log and hardware.json, rows with
+    // no reading among them): one page, a frame per 1/30 s of the run's time.
+    let page = out.join("view.html");
+    let o = Command::new(BIN)
+        .args([
+            "view",
+            out.to_str().unwrap(),
+            "--out",
+            page.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let frames: f64 = said
+        .split_whitespace()
+        .zip(said.split_whitespace().skip(1))
+        .find(|(_, word)| word.starts_with("frames"))
+        .and_then(|(n, _)| n.parse().ok())
+        .unwrap_or_else(|| panic!("no frame count in {said}"));
+    assert!(
+        frames >= 0.5 * 30.0 * span && frames <= 30.0 * span + 2.0,
+        "{frames} frames over {span} s: {said}"
+    );
+    assert!(std::fs::metadata(&page).unwrap().len() > 10_000);
     std::fs::remove_dir_all(&out).unwrap();
 }
 
