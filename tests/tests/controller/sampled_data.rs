@@ -488,12 +488,19 @@ fn plants_whose_numbers_multiply_inside_the_box_keep_every_barrier() {
 /// default `10 L0/s`, 1 m/s here) and half steps in the later check passes every barrier
 /// stays above −1e-6 m, checked every millisecond in closed form; the recorded rates stay
 /// near the bound (the rows hold it at two samples of each hold, not between them).
+/// `three-square-end-row`: a command met its samples' rows but missed the end-of-hold row,
+/// which the check passes did not measure, and the corner went 0.21 mm below zero; the
+/// check now measures it too.
 #[test]
 fn three_square_cases_the_falsifier_found_keep_every_barrier() {
     let robot = Robot::load(&repo("robots/three-square.toml")).expect("the robot");
     let model = Model::new(robot.clone()).expect("its model");
     let limit = 10.0 * robot.modules[0].rest_length;
-    for case in ["three-square-thrash", "three-square-alternate"] {
+    for case in [
+        "three-square-thrash",
+        "three-square-alternate",
+        "three-square-end-row",
+    ] {
         let file = ScenarioFile::load(&repo(&format!("tests/data/{case}.toml"))).expect("reads");
         let scenario = file
             .resolve_with(&model, &Overrides::default())

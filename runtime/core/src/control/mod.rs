@@ -481,6 +481,8 @@ struct SampledWorkspace {
     /// The barrier values at the samples under the last command (sample-major) and the
     /// state `(q, q̇)` the hold starts from.
     sample_values: Vec<f64>,
+    /// `ḃ_k + p1 b_k` at the end of the hold under that command, one per barrier.
+    end_values: Vec<f64>,
     start: Vec<f64>,
 }
 
@@ -1130,6 +1132,7 @@ impl SampledWorkspace {
             solved_rows: vec![0.0; nb * (samples + 1) * nq],
             solved_rhs: vec![0.0; nb * (samples + 1)],
             sample_values: vec![0.0; nb * samples],
+            end_values: vec![0.0; nb],
             start: vec![0.0; 2 * nq],
         }
     }
@@ -1777,10 +1780,11 @@ pub(super) fn sampled_filter(
     // After the settings' passes, a command is kept only once its own integrated motion
     // meets its samples' rows (within CHECK_TOLERANCE): a last solve may move the command
     // so far that the linearization misses (tens of newtons on a bending coordinate, a few
-    // millimetres of a corner); then further passes follow, and if none is met the command
-    // that missed least is kept.
+    // millimetres of a corner) and its end row too; then further passes follow, and if none
+    // is met the command that missed least is kept (the samples' rows first, then the end
+    // row).
     let passes = controller.settings.sampled.passes;
-    let mut best_miss = f64::INFINITY;
+    let mut best_miss = (true, f64::INFINITY);
     let mut best_gave_way = GaveWay::Nothing;
     for pass in 1..passes + CHECK_PASSES {
         // A relaxed problem misses its rows by design: no check.
@@ -1833,6 +1837,7 @@ pub(super) fn sampled_filter(
         // How far the command's own motion misses its samples' rows [m] (infinite where
         // the integration stops short).
         let mut miss = f64::NEG_INFINITY;
+        let mut end_miss = f64::NEG_INFINITY;
         for j in 0..m {
             // The motion under the previous command, integrated to t_j; where the
             // integration fails or leaves the model's domain, the rows of the previous pass
@@ -1882,6 +1887,14 @@ pub(super) fn sampled_filter(
                     let p1 = controller.barrier_gains[k][0] * scale;
                     let jacobian_row = &sampled.jacobian[k * nq..(k + 1) * nq];
                     let r = m * nb + k;
+                    let margin = sampled
+                        .robust
+                        .as_ref()
+                        .map_or(0.0, |robust| robust.margin[r]);
+                    // The end row's miss in metres: how far `ḃ + p1 b` falls short, over p1.
+                    let psi = dot(jacobian_row, velocity) + p1 * sampled.values[k];
+                    end_miss = end_miss.max((margin - psi) / p1);
+                    sampled.end_values[k] = psi;
                     let row = &mut controller.rows[r * nq..(r + 1) * nq];
                     end_row(jacobian_row, forced, forced_velocity, p1, nq, row);
                     controller.rhs[r] = -dot(jacobian_row, velocity) - p1 * sampled.values[k]
@@ -1894,15 +1907,23 @@ pub(super) fn sampled_filter(
             }
         }
         if checking {
-            if miss <= CHECK_TOLERANCE {
+            if miss <= CHECK_TOLERANCE && end_miss <= CHECK_TOLERANCE {
                 // The command stays, with the rows it was solved for.
                 controller.rows[..written * nq]
                     .copy_from_slice(&sampled.solved_rows[..written * nq]);
                 controller.rhs[..written].copy_from_slice(&sampled.solved_rhs[..written]);
                 break;
             }
-            if miss < best_miss {
-                best_miss = miss;
+            // The samples' rows first (they keep the barriers over this hold), then the end
+            // row (it keeps the next hold's start where its floors ask nothing the velocity
+            // does not give).
+            let key = if miss <= CHECK_TOLERANCE {
+                (false, end_miss)
+            } else {
+                (true, miss)
+            };
+            if key < best_miss {
+                best_miss = key;
                 sampled.best.copy_from_slice(&sampled.guess);
                 sampled.best_rows[..written * nq]
                     .copy_from_slice(&sampled.solved_rows[..written * nq]);
@@ -1919,7 +1940,7 @@ pub(super) fn sampled_filter(
             };
             if pass + 1 == passes + CHECK_PASSES {
                 // No command met its rows: the one that missed least, with its rows.
-                if best_miss.is_finite() {
+                if best_miss.1.is_finite() {
                     controller.tau.copy_from_slice(&sampled.best);
                     controller.rows[..written * nq]
                         .copy_from_slice(&sampled.best_rows[..written * nq]);
@@ -1950,13 +1971,14 @@ pub(super) fn sampled_filter(
     status
 }
 
-/// The samples' rows `b_k(q'(t_j)) + S_kj (τ − τ') ≥ floor + margin` with the sensitivity
+/// The samples' rows `b_k(q'(t_j)) + S_kj (τ − τ') ≥ floor + margin` (and the end rows,
+/// `ψ_k(Δ) + S_k (τ − τ') ≥ margin` with `ψ = ḃ + p1 b`, alike) with the sensitivity
 /// `S_kj = ∂b_k(q(t_j))/∂τ` of the plant itself at the last command `τ'` (the guess), by
 /// forward differences: one integration of the plant over the hold per coordinate, under
 /// `τ'` with that coordinate's entry raised by `SENSITIVITY_STEP` (relative). Where such an
 /// integration stops short, the columns of the later samples keep the linear model's
 /// `J_k Γ_j`. Needs the barrier values at the samples under `τ'` in `sample_values` (`m`
-/// samples, `nb` each) and the rows written for `τ'`.
+/// samples, `nb` each), `ψ_k(Δ)` under `τ'` in `end_values`, and the rows written for `τ'`.
 fn sensitivity_rows(model: &Model, controller: &mut Controller, m: usize) {
     let (nq, nb) = (controller.nq, controller.nb);
     let Some(sampled) = controller.sampled.as_mut() else {
@@ -1978,16 +2000,32 @@ fn sensitivity_rows(model: &Model, controller: &mut Controller, m: usize) {
                 let r = j * nb + k;
                 controller.rows[r * nq + c] = (sampled.values[k] - sampled.sample_values[r]) / step;
             }
+            if j + 1 == m {
+                // The end row's `ḃ + p1 b`: its sensitivity too (the linear model's end
+                // velocity can be far off where the plant is stiff and the motion large).
+                let velocity = &sampled.state[nq..];
+                for k in 0..nb {
+                    let p1 = controller.barrier_gains[k][0] * controller.gain_scale;
+                    let jacobian_row = &sampled.jacobian[k * nq..(k + 1) * nq];
+                    let psi = dot(jacobian_row, velocity) + p1 * sampled.values[k];
+                    let r = m * nb + k;
+                    controller.rows[r * nq + c] = (psi - sampled.end_values[k]) / step;
+                }
+            }
         }
     }
-    for r in 0..m * nb {
+    for r in 0..(m + 1) * nb {
         let margin = sampled
             .robust
             .as_ref()
             .map_or(0.0, |robust| robust.margin[r]);
         let row = &controller.rows[r * nq..(r + 1) * nq];
-        controller.rhs[r] =
-            sampled.floor[r] - sampled.sample_values[r] + dot(row, &sampled.guess) + margin;
+        let (floor, value) = if r < m * nb {
+            (sampled.floor[r], sampled.sample_values[r])
+        } else {
+            (0.0, sampled.end_values[r - m * nb])
+        };
+        controller.rhs[r] = floor - value + dot(row, &sampled.guess) + margin;
     }
 }
 
