@@ -67,6 +67,7 @@ pub use softcbf_figures::plot;
 pub use softcbf_protocol as protocol;
 
 pub mod cli;
+pub mod frames;
 pub mod hardware;
 pub mod identify;
 pub mod inspect;

@@ -232,7 +232,7 @@ impl Written {
         let scene = if self.scene_frames > 0 {
             format!(
                 ", the robot in 3-D at {} frames per second of robot time ({} frames)",
-                crate::view::short(self.scene_fps),
+                crate::frames::short(self.scene_fps),
                 self.scene_frames
             )
         } else {

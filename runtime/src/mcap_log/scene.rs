@@ -10,8 +10,8 @@
 //! the figure colours them: red past the verdict's tolerance, orange within 0.5 mm of the
 //! margin), and the obstacles. Coordinates are rounded to 10 µm, as in the view.
 //!
-//! Frames are taken as the view takes them ([`crate::view::frame_times`]): 30 per second
-//! of robot time ([`crate::view::DEFAULT_FPS`]), at most [`crate::view::MAX_FRAMES`] for a
+//! Frames are taken as the view takes them ([`crate::frames::frame_times`]): 30 per second
+//! of robot time ([`crate::frames::DEFAULT_FPS`]), at most [`crate::frames::MAX_FRAMES`] for a
 //! long run, each the record's row nearest to its time, stamped with that row's time; a
 //! frame that would draw the row the frame before it drew is left out. A viewer plays at
 //! about that rate, and the rows themselves (every tick) stay in the joint state and
@@ -26,6 +26,7 @@
 use serde_json::{Value, json};
 
 use super::{LogRun, nanoseconds};
+use crate::frames::{DEFAULT_FPS, coordinate, frame_times};
 use crate::model::Model;
 use crate::plot::PlotError;
 use crate::plot::robot_view::scene::{
@@ -33,8 +34,6 @@ use crate::plot::robot_view::scene::{
 };
 use crate::plot::robot_view::{DEFAULT_ACTIVE_BELOW, violated};
 use crate::record::Record;
-use crate::view::data::coordinate;
-use crate::view::{DEFAULT_FPS, frame_times};
 
 /// The topic of the frame transforms.
 pub const TF_TOPIC: &str = "/tf";

@@ -9,13 +9,12 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::frames::{COORDINATE_STEP, coordinate};
 use crate::model::Model;
 use crate::plot::robot_view::scene::{Obstacle, RobotShape, SceneFrames, palette};
 
 /// The version of this format; the page refuses another.
 pub const FORMAT: u32 = 1;
-/// Resolution of the embedded coordinates \[m\].
-pub const COORDINATE_STEP: f64 = 1e-5;
 /// Significant digits of the embedded barrier values.
 pub const BARRIER_DIGITS: usize = 4;
 /// The highest top of the colour scale \[m\]: the scale shows the last centimetres
@@ -178,15 +177,6 @@ pub struct RobotData {
     /// Per point of [`ViewData::watched`]: the point, then the nearest point of its
     /// obstacle (the point again if the obstacle cannot be drawn; six numbers).
     pub watched: Vec<f64>,
-}
-
-/// `x` to the nearest multiple of [`COORDINATE_STEP`] (`None` if not finite).
-pub fn coordinate(x: f64) -> Option<f64> {
-    let rounded = (x / COORDINATE_STEP).round() * COORDINATE_STEP;
-    // Written through the decimal of the step, so the JSON holds the short form.
-    rounded
-        .is_finite()
-        .then(|| format!("{rounded:.5}").parse().unwrap_or(rounded))
 }
 
 /// `x` to [`BARRIER_DIGITS`] significant digits (`None` if not finite).

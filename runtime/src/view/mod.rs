@@ -32,19 +32,16 @@ pub mod data;
 
 use data::ViewData;
 
+pub use crate::frames::{DEFAULT_FPS, MAX_FRAMES, frame_times, short};
+
 /// The page's file name in the run's directory.
 pub const FILE_NAME: &str = "view.html";
 /// The trajectory of the run asked for, and of its PD+ comparison, in a run's directory.
 pub const TRAJECTORY: &str = "trajectory.csv";
 /// See [`TRAJECTORY`].
 pub const TRAJECTORY_PD: &str = "trajectory_pd.csv";
-/// Frames per second of robot time, by default.
-pub const DEFAULT_FPS: f64 = 30.0;
 /// The range of `--fps` \[frames per second of robot time\].
 pub const FPS: Limit = Limit::closed(1.0, 240.0, "frames/s");
-/// The most frames a page holds (about 10 kB each for two runs of the paper's robot); a
-/// longer run gets fewer frames per second.
-pub const MAX_FRAMES: usize = 1500;
 
 /// The page template: style and markup, with the data and the script put in at the marks.
 const TEMPLATE: &str = include_str!("page.html");
@@ -167,12 +164,6 @@ impl Written {
     }
 }
 
-/// `30`, `12.5`, `0.333`: a rate without trailing zeros.
-pub fn short(x: f64) -> String {
-    let text = format!("{x:.3}");
-    text.trim_end_matches('0').trim_end_matches('.').to_string()
-}
-
 /// `softcbf view`: writes the page, says what it wrote.
 pub fn view(args: ViewArgs, console: &mut Console) -> Result<u8, String> {
     let fps = check_number("--fps", args.fps, &FPS)?;
@@ -274,33 +265,6 @@ pub fn write_view(
         fps,
         bytes: html.len(),
     })
-}
-
-/// The frame times over `span` \[s\] at `fps` frames per second of robot time: `t0 +
-/// k/fps` up to the span's end, and the end itself last; for a span that would take more
-/// than [`MAX_FRAMES`], [`MAX_FRAMES`] times evenly from start to end. Returns the times
-/// and the rate they have.
-pub fn frame_times(span: (f64, f64), fps: f64) -> (Vec<f64>, f64) {
-    let (start, end) = span;
-    let length = end - start;
-    if !(length > 0.0 && length.is_finite() && fps > 0.0) {
-        return (vec![start], fps);
-    }
-    if length * fps >= (MAX_FRAMES - 1) as f64 {
-        let step = length / (MAX_FRAMES - 1) as f64;
-        let mut times: Vec<f64> = (0..MAX_FRAMES).map(|k| start + k as f64 * step).collect();
-        times[MAX_FRAMES - 1] = end;
-        return (times, 1.0 / step);
-    }
-    let steps = (length * fps * (1.0 + 1e-12)).floor() as usize;
-    let mut times: Vec<f64> = (0..=steps).map(|k| start + k as f64 / fps).collect();
-    let last = times[times.len() - 1];
-    if end - last > 1e-9 * end.abs().max(1.0) {
-        times.push(end);
-    } else {
-        times[steps] = end;
-    }
-    (times, fps)
 }
 
 /// The page of `data`: the template with the data and the script put in.
