@@ -799,8 +799,11 @@ fn backup(
             ws.center[i] = lambda * (ws.backup_tau[i] - ws.offset[i]);
             controller.tau[i] = ws.offset[i] + ws.center[i];
         }
+        // (The QP's own answer meets its limit rows to its tolerance, not exactly.)
         let within = (limits_start..rows).all(|r| {
-            dot(&controller.rows[r * nq..(r + 1) * nq], &controller.tau) >= controller.rhs[r]
+            let rhs = controller.rhs[r];
+            dot(&controller.rows[r * nq..(r + 1) * nq], &controller.tau)
+                >= rhs - LIMIT_TOLERANCE * (1.0 + rhs.abs())
         });
         if !within {
             continue;
@@ -830,6 +833,9 @@ fn backup(
 /// The points of the line from the predicted rows' command (`1`) to the backup (`0`) that
 /// [`backup`] tries, in order.
 const BACKUP_STEPS: [f64; 3] = [1.0, 0.5, 0.0];
+/// How far (relative) a command of [`backup`] may fall short of an input-limit row: the
+/// QP's feasibility tolerance, far below a tension that matters (1e-9 of 1 + |rhs| N).
+const LIMIT_TOLERANCE: f64 = 1e-9;
 
 /// Attempts at a command whose bound holds.
 const ATTEMPTS: usize = 5;
