@@ -265,6 +265,9 @@ pub struct EnclosureWorkspace {
     dual_shares: Vec<Dual>,
     dual_q: Vec<Dual>,
     dual_qd: Vec<Dual>,
+    /// [`enclose_mismatch`]'s plate wrenches (`n`) and `h + G` (`nq`) on jets.
+    dual_forces: Vec<V6<Dual>>,
+    dual_bias: Vec<Dual>,
     /// Each plate's share of `M` over the box: `n` blocks of `nq × nq` \[kg\] (after
     /// [`enclose_mass`]).
     pub mass_shares: Vec<Interval>,
@@ -292,6 +295,8 @@ impl EnclosureWorkspace {
             dual_shares: vec![Dual::default(); n * nq * nq],
             dual_q: vec![Dual::default(); nq],
             dual_qd: vec![Dual::default(); nq],
+            dual_forces: vec![[Dual::default(); 6]; n],
+            dual_bias: vec![Dual::default(); nq],
             mass_shares: vec![Interval::ZERO; n * nq * nq],
             mass_rate_shares: vec![Interval::ZERO; n * nq * nq],
             nonlinear: vec![Interval::ZERO; nq],
@@ -591,9 +596,8 @@ pub fn enclose_mismatch(
     );
     joints.prepare();
     joints.mass_shares(&model.inertias, &mut ws.dual_shares);
-    let mut forces = [[Dual::default(); 6]; MAX_MODULES];
-    let mut bias = [Dual::default(); 3 * MAX_MODULES];
-    newton_euler(model, joints, v, true, &mut forces[..n], &mut bias[..nq]);
+    let (forces, bias) = (&mut ws.dual_forces, &mut ws.dual_bias);
+    newton_euler(model, joints, v, true, forces, bias);
     let nn = nq * nq;
     ws.per_body.fill(0.0);
     for (r, o) in out.iter_mut().enumerate() {

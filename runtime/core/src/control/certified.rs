@@ -242,6 +242,8 @@ pub(super) struct CertifiedWorkspace {
     xi: Vec<f64>,
     xi_computed: Vec<f64>,
     force: Vec<f64>,
+    /// Per cell: `‖S⁻¹F̄‖`.
+    force_norm: Vec<f64>,
     /// Per cell: a lower bound of the plant's smallest mass eigenvalue over the cell's box
     /// (0 where none is known).
     mass_floor: Vec<f64>,
@@ -264,6 +266,13 @@ pub(super) struct CertifiedWorkspace {
     v_jet: Vec<Dual>,
     a_jet: Vec<Dual>,
     g_jet: Vec<Dual>,
+    /// Per group (`groups × nq`, `groups × nq²`): the rate of the residual along the
+    /// uncorrected prediction and `|M₀ − M_p|` over its box, from the rate jet. They depend
+    /// on the command and the partition, not on the tube, so the fixed point's later rounds
+    /// reuse the first round's (`rates_ready`).
+    group_rate: Vec<f64>,
+    group_inertial: Vec<f64>,
+    rates_ready: bool,
     enclosure: EnclosureWorkspace,
     /// The hold's hull of positions and of the linear velocities.
     hull_q: Vec<Interval>,
@@ -370,6 +379,7 @@ impl CertifiedWorkspace {
             size *= 2;
         }
         let coarse_groups = coarse_partition(&groups);
+        let group_count = groups.len().max(coarse_groups.len());
         CertifiedWorkspace {
             nq,
             samples,
@@ -397,6 +407,7 @@ impl CertifiedWorkspace {
             xi: vec![0.0; samples * nq],
             xi_computed: vec![0.0; samples * nq],
             force: vec![0.0; samples * nq],
+            force_norm: vec![0.0; samples],
             mass_floor: vec![0.0; samples],
             mass_floor0: 0.0,
             scale: vec![0.0; nq],
@@ -409,6 +420,9 @@ impl CertifiedWorkspace {
             v_jet: vec![Dual::default(); nq],
             a_jet: vec![Dual::default(); nq],
             g_jet: vec![Dual::default(); nq],
+            group_rate: vec![0.0; group_count * nq],
+            group_inertial: vec![0.0; group_count * nq * nq],
+            rates_ready: false,
             enclosure: EnclosureWorkspace::new(model),
             hull_q: vec![Interval::ZERO; nq],
             hull_v: vec![Interval::ZERO; nq],
@@ -698,6 +712,8 @@ fn certified_attempts(
         controller.rhs[r] = INACTIVE;
     }
     let status = super::sampled_filter(model, controller, q, qd);
+    // (Its time is the fallback's, not the backup's prediction.)
+    split.fallback += lap(mark);
     if !matches!(status, TickStatus::Filtered | TickStatus::Relaxed) {
         return status;
     }
@@ -1375,40 +1391,45 @@ fn group_forcing(
             return Err(failed(Uncertified::Domain, "group outside the domain"));
         }
         // The rate of g along the uncorrected prediction but for its jerk term (q̇ = ė,
-        // q̈ = ë there); the jerk's share, (M₀ − M) e⃛, is taken by its integral below.
-        for i in 0..nq {
-            ws.q_jet[i] = Dual::new(plain[i][0], plain[i][1]);
-            ws.v_jet[i] = Dual::new(plain[i][1], plain[i][2]);
-            ws.a_jet[i] = Dual::constant(plain[i][2]);
-        }
-        if !enclose_mismatch(
-            model,
-            &mut ws.enclosure,
-            &ws.q_jet,
-            &ws.v_jet,
-            &ws.a_jet,
-            mass,
-            nonlinear,
-            &mut ws.g_jet,
-        ) {
-            return Err(failed(Uncertified::Domain, "rate jet"));
-        }
-        let mut rate = [0.0f64; 64];
-        for i in 0..nq {
-            rate[i] = (ws.g_jet[i].slope - ws.phi1[i]).mag();
-        }
-        // |M₀ − M_p| over the uncorrected prediction's box, for the jerk's share.
-        let mut inertial = [0.0f64; 64 * 64];
-        for r in 0..nq {
-            for c in 0..nq {
-                let e = r * nq + c;
-                let mut total = Interval::ZERO;
-                let mut magnitude = 0.0;
-                for b in 0..ws.enclosure.modules() {
-                    total += ws.enclosure.mass_shares[b * nn + e];
-                    magnitude += ws.enclosure.mass_shares[b * nn + e].mag();
+        // q̈ = ë there); the jerk's share, (M₀ − M) e⃛, is taken by its integral below. Both
+        // come from the uncorrected prediction alone: computed in the first round, reused.
+        if !ws.rates_ready {
+            let (rate, inertial) = (
+                &mut ws.group_rate[g * nq..(g + 1) * nq],
+                &mut ws.group_inertial[g * nn..(g + 1) * nn],
+            );
+            for i in 0..nq {
+                ws.q_jet[i] = Dual::new(plain[i][0], plain[i][1]);
+                ws.v_jet[i] = Dual::new(plain[i][1], plain[i][2]);
+                ws.a_jet[i] = Dual::constant(plain[i][2]);
+            }
+            if !enclose_mismatch(
+                model,
+                &mut ws.enclosure,
+                &ws.q_jet,
+                &ws.v_jet,
+                &ws.a_jet,
+                mass,
+                nonlinear,
+                &mut ws.g_jet,
+            ) {
+                return Err(failed(Uncertified::Domain, "rate jet"));
+            }
+            for i in 0..nq {
+                rate[i] = (ws.g_jet[i].slope - ws.phi1[i]).mag();
+            }
+            // |M₀ − M_p| over the uncorrected prediction's box, for the jerk's share.
+            for r in 0..nq {
+                for c in 0..nq {
+                    let e = r * nq + c;
+                    let mut total = Interval::ZERO;
+                    let mut magnitude = 0.0;
+                    for b in 0..ws.enclosure.modules() {
+                        total += ws.enclosure.mass_shares[b * nn + e];
+                        magnitude += ws.enclosure.mass_shares[b * nn + e].mag();
+                    }
+                    inertial[e] = (total - mass[e]).mag() + u.mass * magnitude;
                 }
-                inertial[e] = (total - mass[e]).mag() + u.mass * magnitude;
             }
         }
         // The change of g across the spread.
@@ -1444,6 +1465,10 @@ fn group_forcing(
         for c in group.clone() {
             ws.mass_floor[c] = floor.max(0.0);
         }
+        let (rate, inertial) = (
+            &ws.group_rate[g * nq..(g + 1) * nq],
+            &ws.group_inertial[g * nn..(g + 1) * nn],
+        );
         for c in group.clone() {
             let h = ws.cell(c);
             for i in 0..nq {
@@ -1465,6 +1490,7 @@ fn group_forcing(
             }
         }
     }
+    ws.rates_ready = true;
     Ok(())
 }
 
@@ -1515,6 +1541,8 @@ fn error_bounds(
     let join = |acc: &mut Interval, x: Interval| {
         *acc = if acc.is_valid() { acc.hull(x) } else { x };
     };
+    // The rate jets belong to this command and partition.
+    ws.rates_ready = false;
     for _ in 0..ROUNDS {
         // |ξ| is bounded on [0, t]: the assumed bound must not shrink along the hold.
         for j in 1..s {
@@ -1579,28 +1607,29 @@ fn error_bounds(
         let mut phi = 0.0;
         let mut closed = true;
         let mut lowest_mass = f64::INFINITY;
+        // ‖S⁻¹F̄‖ per cell, for the inertial bound's moments.
+        for c in 0..s {
+            let mut n2 = 0.0;
+            for i in 0..nq {
+                n2 += (ws.force[c * nq + i] / ws.scale[i]).powi(2);
+            }
+            ws.force_norm[c] = n2.sqrt();
+        }
         for c in 0..s {
             let (h, t) = (ws.cell(c), ws.time(c + 1));
             let mut sum = 0.0;
-            let mut norm = 0.0;
             for i in 0..nq {
                 let f = ws.force[c * nq + i];
                 sum += f * f / (ws.damping_share * model.damping[i]);
-                norm += f * f;
             }
             phi += h * sum * ROUNDING;
             lowest_mass = lowest_mass.min(ws.mass_floor[c]);
             // ∫₀^{t} (t − s) ‖F̄(s)‖ ds over the cells so far.
             let mut moment = 0.0;
             for c2 in 0..=c {
-                let mut n2 = 0.0;
-                for i in 0..nq {
-                    n2 += (ws.force[c2 * nq + i] / ws.scale[i]).powi(2);
-                }
                 let middle = 0.5 * (ws.time(c2) + ws.time(c2 + 1));
-                moment += n2.sqrt() * ws.cell(c2) * (t - middle);
+                moment += ws.force_norm[c2] * ws.cell(c2) * (t - middle);
             }
-            let _ = norm;
             let inertial = if lowest_mass > 0.0 {
                 moment / lowest_mass * ROUNDING
             } else {
