@@ -1326,6 +1326,25 @@ fn perron_bound(p: &[f64], nq: usize, work: &mut [f64]) -> f64 {
     (0..nq).map(|r| y[r] / x[r]).fold(0.0, f64::max) * (1.0 + 1e-10)
 }
 
+/// [`enclose_mismatch`] on the workspace's jets (`q_jet`, `v_jet`, `a_jet`) into `g_jet`.
+fn mismatch_on_jets(
+    model: &Model,
+    ws: &mut CertifiedWorkspace,
+    mass: &[f64],
+    nonlinear: &[f64],
+) -> bool {
+    enclose_mismatch(
+        model,
+        &mut ws.enclosure,
+        &ws.q_jet,
+        &ws.v_jet,
+        &ws.a_jet,
+        mass,
+        nonlinear,
+        &mut ws.g_jet,
+    )
+}
+
 /// The forcing bound `F̄` of every cell (`ws.force`) for the tube the workspace assumes
 /// (`ws.xi` around the corrected prediction), group by group of cells: the fit's residual
 /// `g − φ` on the uncorrected prediction (its values at the samples plus half a cell of its
@@ -1394,27 +1413,18 @@ fn group_forcing(
         // q̈ = ë there); the jerk's share, (M₀ − M) e⃛, is taken by its integral below. Both
         // come from the uncorrected prediction alone: computed in the first round, reused.
         if !ws.rates_ready {
-            let (rate, inertial) = (
-                &mut ws.group_rate[g * nq..(g + 1) * nq],
-                &mut ws.group_inertial[g * nn..(g + 1) * nn],
-            );
             for i in 0..nq {
                 ws.q_jet[i] = Dual::new(plain[i][0], plain[i][1]);
                 ws.v_jet[i] = Dual::new(plain[i][1], plain[i][2]);
                 ws.a_jet[i] = Dual::constant(plain[i][2]);
             }
-            if !enclose_mismatch(
-                model,
-                &mut ws.enclosure,
-                &ws.q_jet,
-                &ws.v_jet,
-                &ws.a_jet,
-                mass,
-                nonlinear,
-                &mut ws.g_jet,
-            ) {
+            if !mismatch_on_jets(model, ws, mass, nonlinear) {
                 return Err(failed(Uncertified::Domain, "rate jet"));
             }
+            let (rate, inertial) = (
+                &mut ws.group_rate[g * nq..(g + 1) * nq],
+                &mut ws.group_inertial[g * nn..(g + 1) * nn],
+            );
             for i in 0..nq {
                 rate[i] = (ws.g_jet[i].slope - ws.phi1[i]).mag();
             }
@@ -1438,16 +1448,7 @@ fn group_forcing(
             ws.v_jet[i] = Dual::new(base[i][1], Interval::around(0.0, spread[i][1]));
             ws.a_jet[i] = Dual::new(base[i][2], Interval::around(0.0, spread[i][2]));
         }
-        if !enclose_mismatch(
-            model,
-            &mut ws.enclosure,
-            &ws.q_jet,
-            &ws.v_jet,
-            &ws.a_jet,
-            mass,
-            nonlinear,
-            &mut ws.g_jet,
-        ) {
+        if !mismatch_on_jets(model, ws, mass, nonlinear) {
             return Err(failed(Uncertified::Domain, "spread jet"));
         }
         // λ_min(S⁻¹M_pS⁻¹) ≥ (1 − σ_m) (λ_min(S⁻¹M₀S⁻¹) − ‖S⁻¹(M(Q) − M₀)S⁻¹‖_F) over
