@@ -848,7 +848,8 @@ fn model_and_simulate_report_an_output_they_cannot_write() {
 
     let out = temp_dir("simulate-full");
     let output = Command::new(BIN)
-        .args(["simulate", "--out"])
+        // A short run: what is tested is the output, not the run.
+        .args(["simulate", "--duration", "0.2", "--out"])
         .arg(&out)
         .stdout(full())
         .output()
@@ -864,7 +865,7 @@ fn model_and_simulate_report_an_output_they_cannot_write() {
     let out = temp_dir("simulate-figure");
     std::fs::create_dir_all(out.join("figure.png")).unwrap();
     let output = Command::new(BIN)
-        .args(["simulate", "--out"])
+        .args(["simulate", "--duration", "0.2", "--out"])
         .arg(&out)
         .output()
         .unwrap();
