@@ -9,6 +9,8 @@
 
 use std::fmt;
 
+use crate::barrier_label;
+
 /// What a barrier keeps apart.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum BarrierKind {
@@ -364,7 +366,8 @@ pub struct BarrierSpec {
     /// The obstacle (0-based, file order), for environment barriers.
     pub obstacle: Option<usize>,
     /// A short stable name, 1-based: `module 1 corner 3`, `module 2 elongation max`,
-    /// `module 1 bend`, `obstacle 1 module 2 corner 4`, `obstacle 2 module 1 arc 1`.
+    /// `module 1 bend`, `obstacle 1 module 2 corner 4`, `obstacle 2 module 1 arc 1`
+    /// (written and read by [`barrier_label`]).
     pub label: String,
 }
 
@@ -381,24 +384,25 @@ pub fn barrier_list(structure: &crate::Structure) -> Vec<BarrierSpec> {
                 module: i,
                 point: Some(Point::Corner(j)),
                 obstacle: None,
-                label: format!("module {} corner {}", i + 1, j + 1),
+                label: barrier_label::corner(i, j),
             });
         }
     }
     // Every module's limits, written or the domain's defaults: the model's domain is a
     // constraint of every robot (crate::domain).
     for i in 0..structure.modules() {
-        for (kind, what) in [
-            (BarrierKind::ElongationMin, "elongation min"),
-            (BarrierKind::ElongationMax, "elongation max"),
-            (BarrierKind::Bend, "bend"),
+        for kind in [
+            BarrierKind::ElongationMin,
+            BarrierKind::ElongationMax,
+            BarrierKind::Bend,
         ] {
+            let words = barrier_label::limit_words(kind).unwrap_or_default();
             list.push(BarrierSpec {
                 kind,
                 module: i,
                 point: None,
                 obstacle: None,
-                label: format!("module {} {what}", i + 1),
+                label: barrier_label::limit(i, words),
             });
         }
     }
@@ -424,7 +428,7 @@ pub fn barrier_list(structure: &crate::Structure) -> Vec<BarrierSpec> {
                 module,
                 point: Some(point),
                 obstacle: Some(o),
-                label: format!("obstacle {} module {} {name}", o + 1, module + 1),
+                label: barrier_label::obstacle_point(o, module, &name),
             });
         }
     }

@@ -41,6 +41,7 @@ mod style;
 use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, IntoFont, SVGBackend};
 use plotters::style::register_font;
 
+use softcbf_description::barrier_label;
 use softcbf_description::barriers::KIND_GROUPS;
 use softcbf_generated::KindGroup;
 
@@ -475,38 +476,10 @@ fn kinds_of(labels: &[String], model: Option<&Model>) -> Option<Vec<(KindGroup, 
                 .collect(),
         );
     }
-    labels.iter().map(|label| kind_of_label(label)).collect()
-}
-
-/// The kind group and module (0-based) a barrier label names: `module K corner J`,
-/// `module K elongation min|max`, `module K bend`, `obstacle O module K …`.
-fn kind_of_label(label: &str) -> Option<(KindGroup, usize)> {
-    if let Some(rest) = label.strip_prefix("obstacle ") {
-        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
-        let (module, _) = split_module(rest[digits..].trim_start())?;
-        return (digits > 0).then_some((KindGroup::Obstacle, module - 1));
-    }
-    let (module, rest) = split_module(label)?;
-    let group = match rest.split(' ').next()? {
-        "corner" => KindGroup::PlateCorner,
-        "elongation" => KindGroup::Elongation,
-        "bend" => KindGroup::Bend,
-        _ => return None,
-    };
-    Some((group, module - 1))
-}
-
-/// The label without its `module K` words (`obstacle 1 module 2 arc 1` → `obstacle 1 arc
-/// 1`, `module 2 bend` → `bend`); the label itself if it has none.
-fn without_module(label: &str) -> String {
-    let words: Vec<&str> = label.split(' ').collect();
-    let at = words.windows(2).position(|pair| {
-        pair[0] == "module" && !pair[1].is_empty() && pair[1].bytes().all(|b| b.is_ascii_digit())
-    });
-    match at {
-        Some(k) => [&words[..k], &words[k + 2..]].concat().join(" "),
-        None => label.to_string(),
-    }
+    labels
+        .iter()
+        .map(|label| barrier_label::kind_group(label))
+        .collect()
 }
 
 impl Grouping {
@@ -550,9 +523,10 @@ impl Grouping {
             }
             let mut names: Vec<String> = Vec::new();
             for &j in &barriers {
-                let name = labels
-                    .get(j)
-                    .map_or_else(|| format!("#{}", j + 1), |label| without_module(label));
+                let name = labels.get(j).map_or_else(
+                    || format!("#{}", j + 1),
+                    |label| barrier_label::without_module(label),
+                );
                 grouping.key[j] = match names.iter().position(|n| *n == name) {
                     Some(k) => k,
                     None => {
@@ -809,20 +783,8 @@ fn room_for_labels(
 
 /// The label without its `module K ` prefix (`module 2 corner 6` → `corner 6`), if it has one.
 fn strip_module(label: &str) -> Option<&str> {
-    let (module, rest) = split_module(label)?;
+    let (module, rest) = barrier_label::split_module(label)?;
     (module > 0).then_some(rest)
-}
-
-/// `(K, rest)` of a label `module K rest` (`K` ≥ 1; `rest` may be empty).
-fn split_module(label: &str) -> Option<(usize, &str)> {
-    let after = label.strip_prefix("module ")?;
-    let digits = after.bytes().take_while(u8::is_ascii_digit).count();
-    let module: usize = after[..digits].parse().ok()?;
-    let rest = &after[digits..];
-    if !(rest.is_empty() || rest.starts_with(' ')) || module == 0 {
-        return None;
-    }
-    Some((module, rest.trim_start()))
 }
 
 /// How many barriers each module owns, from labels that begin with `module K` (1-based, in
@@ -831,7 +793,7 @@ fn split_module(label: &str) -> Option<(usize, &str)> {
 pub fn modules_from_labels(labels: &[String]) -> Option<Vec<usize>> {
     let mut counts: Vec<usize> = Vec::new();
     for label in labels {
-        let (module, _) = split_module(label)?;
+        let (module, _) = barrier_label::split_module(label)?;
         if module < counts.len() {
             return None;
         }
@@ -968,39 +930,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn labels_tell_the_kind_group_and_module() {
-        let cases = [
-            ("module 1 corner 3", Some((KindGroup::PlateCorner, 0))),
-            (
-                "module 12 elongation min",
-                Some((KindGroup::Elongation, 11)),
-            ),
-            ("module 2 elongation max", Some((KindGroup::Elongation, 1))),
-            ("module 2 bend", Some((KindGroup::Bend, 1))),
-            (
-                "obstacle 1 module 2 corner 4",
-                Some((KindGroup::Obstacle, 1)),
-            ),
-            ("obstacle 10 module 1 arc 2", Some((KindGroup::Obstacle, 0))),
-            ("module 0 corner 1", None),
-            ("module 1 twist", None),
-            ("obstacle module 1 arc 2", None),
-            ("corner 1", None),
-            ("#1", None),
-        ];
-        for (label, expected) in cases {
-            assert_eq!(kind_of_label(label), expected, "{label}");
-        }
-        assert_eq!(without_module("module 2 corner 6"), "corner 6");
-        assert_eq!(without_module("module 2 bend"), "bend");
-        assert_eq!(
-            without_module("obstacle 1 module 2 arc 1"),
-            "obstacle 1 arc 1"
-        );
-        assert_eq!(without_module("b1"), "b1");
-    }
-
-    #[test]
     fn rows_group_barriers_by_kind_with_a_colour_per_name() {
         let labels: Vec<String> = [
             "module 1 corner 1",
@@ -1012,8 +941,10 @@ mod tests {
         ]
         .map(String::from)
         .to_vec();
-        let kinds: Vec<(KindGroup, usize)> =
-            labels.iter().map(|l| kind_of_label(l).unwrap()).collect();
+        let kinds: Vec<(KindGroup, usize)> = labels
+            .iter()
+            .map(|l| barrier_label::kind_group(l).unwrap())
+            .collect();
         let grouping = Grouping::by_kind(&kinds, &labels);
         let rows: Vec<(Option<KindGroup>, Vec<usize>)> = grouping.rows.clone();
         assert_eq!(
