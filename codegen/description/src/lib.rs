@@ -17,7 +17,6 @@
 //! assert_eq!(softcbf_description::layout::pack_params(&robot).len(), 2 * (3 + 6 * 3 + 5));
 //! ```
 
-pub mod barrier_label;
 mod barrier_tables;
 pub mod barriers;
 pub mod domain;

@@ -181,7 +181,20 @@ pub const BARRIER_GAIN_PER_S: Limit = Limit::above(0.0, 1e4, "1/s");
 // ---------------------------------------------------------------------------------------
 // The limits every module has where its robot file writes none: the model's domain as a
 // constraint of the controller (docs/model.md §3). One place for all of them; a file may
-// tighten them, not loosen them.
+// tighten them, not loosen them. First the model's own domain (crate::domain re-exports
+// these three), which every state and every limit a file writes lies within.
+
+/// Largest bend `θ = √(Δx² + Δy²)/d` of a segment \[rad\]: three quarters of a turn
+/// (270°). At a full turn the plate comes back onto its base whatever the bend's direction
+/// and the segment's length, so `M(q)` is singular there (its smallest Cholesky pivot
+/// falls as `(2π − θ)²`: 4e-3 of the largest at 1.5π, 2e-6 at 1.99π for the paper robot);
+/// no module bends that far without its plates meeting.
+pub const MAX_BEND_RAD: f64 = 1.5 * std::f64::consts::PI;
+/// Largest `|δL|` as a multiple of the segment's rest length `L0`.
+pub const MAX_ELONGATION_RATIO: f64 = 10.0;
+/// Largest `|q̇|` entry \[m/s\]: far beyond any soft robot, small enough that every product
+/// of the dynamics stays finite.
+pub const MAX_SPEED: f64 = 100.0;
 
 /// The domain's default lower bound on a backbone's length, as a fraction `λ_min` of its
 /// rest length: `L0 + δL ≥ λ_min L0`, the elongation limit `δL_min = −(1 − λ_min) L0`
@@ -199,12 +212,12 @@ pub const DEFAULT_MIN_LENGTH_FRACTION: f64 = 0.05;
 /// simulation (`scenarios/paper-sim.toml`), and this row must leave that alone: at `3 L0`
 /// it binds there with [`DOMAIN_BARRIER_GAINS`] (the run moves by 6 mm) and would need
 /// stiffer gains, which the paper's rows at 33 Hz overshoot more often. No module of the
-/// repository comes near `4 L0`; [`crate::domain::MAX_ELONGATION_RATIO`], the domain
+/// repository comes near `4 L0`; [`MAX_ELONGATION_RATIO`], the domain
 /// itself, is ten.
 pub const DEFAULT_MAX_ELONGATION_RATIO: f64 = 4.0;
 /// The domain's default bend limit \[rad\]: `θ ≤ 1.25π` (225°), and the largest bend limit
 /// a robot file may write. It keeps the state an eighth of a turn inside the domain's
-/// [`crate::domain::MAX_BEND_RAD`], where the mass matrix is still well conditioned; the
+/// [`MAX_BEND_RAD`], where the mass matrix is still well conditioned; the
 /// plates of any real module meet long before (the paper's at `θ = (L0 + δL)/r = 2 rad`,
 /// 115°, straight).
 pub const DEFAULT_MAX_BEND_RAD: f64 = 1.25 * std::f64::consts::PI;
@@ -223,7 +236,7 @@ pub const DOMAIN_BARRIER_GAINS: [f64; 2] = [30.0, 30.0];
 
 /// The default bound on each module's elongation rate `|δL̇|`, in rest lengths per second:
 /// `|δL̇| ≤ 10 L0/s` (1 m/s for `L0 = 0.1 m`), and the largest rate a robot file may write is
-/// the domain's speed, [`crate::domain::MAX_SPEED`]. It is a row of the predicted and
+/// the domain's speed, [`MAX_SPEED`]. It is a row of the predicted and
 /// certified rows only (docs/model.md §5, "Rate limits"): the filter may not buy a corner by
 /// stretching a module faster, since a module thrashing between its limits at several
 /// metres per second leaves the next hold in a state from which no command keeps every
@@ -233,7 +246,7 @@ pub const DOMAIN_BARRIER_GAINS: [f64; 2] = [30.0, 30.0];
 pub const DEFAULT_ELONGATION_RATE_PER_L0: f64 = 10.0;
 
 /// An elongation rate bound `|δL̇| ≤ v̄` \[m/s\] (`[limits] elongation_rate`).
-pub const ELONGATION_RATE_M_S: Limit = Limit::above(0.0, crate::domain::MAX_SPEED, "m/s");
+pub const ELONGATION_RATE_M_S: Limit = Limit::above(0.0, MAX_SPEED, "m/s");
 
 /// The domain's default elongation limits `[δL_min, δL_max]` \[m\] of a module of rest
 /// length `L0` \[m\]: `[−(1 − λ_min) L0, 4 L0]`, the widest a robot file may write.

@@ -4,7 +4,6 @@
 //! checks (its `set_point`) use it while the robot is being built; [`crate::domain`] gives
 //! the same for a whole robot.
 
-use std::f64::consts::PI;
 use std::fmt;
 
 use toml::Spanned;
@@ -12,17 +11,7 @@ use toml::Spanned;
 use crate::module::Module;
 use crate::toml_file::{Checker, FileError};
 
-/// Largest bend `θ = √(Δx² + Δy²)/d` of a segment \[rad\]: three quarters of a turn
-/// (270°). At a full turn the plate comes back onto its base whatever the bend's direction
-/// and the segment's length, so `M(q)` is singular there (its smallest Cholesky pivot
-/// falls as `(2π − θ)²`: 4e-3 of the largest at 1.5π, 2e-6 at 1.99π for the paper robot);
-/// no module bends that far without its plates meeting.
-pub const MAX_BEND_RAD: f64 = 1.5 * PI;
-/// Largest `|δL|` as a multiple of the segment's rest length `L0`.
-pub const MAX_ELONGATION_RATIO: f64 = 10.0;
-/// Largest `|q̇|` entry \[m/s\]: far beyond any soft robot, small enough that every product
-/// of the dynamics stays finite.
-pub const MAX_SPEED: f64 = 100.0;
+pub use crate::limits::{MAX_BEND_RAD, MAX_ELONGATION_RATIO, MAX_SPEED};
 
 /// Why a state lies outside the model's domain. `module` and `index` count from 1.
 #[derive(Clone, Copy, Debug, PartialEq)]

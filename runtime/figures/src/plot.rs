@@ -41,8 +41,7 @@ mod style;
 use plotters::prelude::{BitMapBackend, FontStyle, IntoDrawingArea, IntoFont, SVGBackend};
 use plotters::style::register_font;
 
-use softcbf_description::barrier_label;
-use softcbf_description::barriers::KIND_GROUPS;
+use softcbf_description::barriers::{KIND_GROUPS, label as barrier_label};
 use softcbf_generated::KindGroup;
 
 use crate::model::Model;
