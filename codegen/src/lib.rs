@@ -5,7 +5,7 @@
 //! subexpressions, and [`emit`] writing Rust through syn/quote/prettyplease. The analytic
 //! functions `f_s`, `f_c` of docs/model.md §2 and their derivatives are nodes of their own,
 //! evaluated by [`analytic`]'s series-or-closed-form code. [`model`] builds the PCC
-//! kinematics, barriers and joint terms of a robot's `Structure`; [`eval`] runs the same
+//! kinematics, barriers and joint terms of a robot's `Structure` and [`source`] emits them; [`eval`] runs the same
 //! programs on f64 at run time (the interpreter of a structure that was not compiled in). Robot files and the
 //! parameter layout are `softcbf-description`'s: the generator reads structures only.
 //!
@@ -28,8 +28,9 @@ pub mod model;
 pub mod program;
 pub mod registry;
 pub mod sexpr;
+pub mod source;
 
-pub use model::{GeneratedSource, generate};
+pub use source::{GeneratedSource, generate};
 // The modules of the description that generation reads, under their old paths inside this
 // crate (`crate::robot::Structure`, `crate::layout::param_layout`, `crate::barriers`).
 use softcbf_description::{barriers, layout, robot};

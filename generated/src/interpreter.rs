@@ -219,7 +219,7 @@ fn sized<'a, T>(slice: &'a mut [T], len: usize, what: &str) -> &'a mut [T] {
     slice
 }
 
-/// Writes the joint terms, in [`softcbf_codegen::model::FunctionOutputs::joint_terms`]'s
+/// Writes the joint terms, in [`softcbf_codegen::source::FunctionOutputs::joint_terms`]'s
 /// order.
 fn write_joint_terms<T>(
     values: &mut dyn Iterator<Item = T>,
@@ -245,7 +245,7 @@ fn write_joint_terms<T>(
     }
 }
 
-/// Writes the barrier terms, in [`softcbf_codegen::model::FunctionOutputs::barrier_terms`]'s
+/// Writes the barrier terms, in [`softcbf_codegen::source::FunctionOutputs::barrier_terms`]'s
 /// order.
 fn write_barrier_terms<T>(
     values: &mut dyn Iterator<Item = T>,
