@@ -27,7 +27,7 @@ use rand::rngs::Xoshiro256PlusPlus;
 use crate::control::{self, Controller, ControllerError, TickStatus};
 use crate::integrator::IntegratorError;
 use crate::model::{Model, ModelError};
-use crate::noise::standard_normal;
+use crate::noise::{SensorNoise, standard_normal};
 use crate::plant::Plant;
 use crate::record::{Columns, Record, RecordError, Row, status};
 use crate::reference::ReferenceSignal;
@@ -474,6 +474,11 @@ pub struct Run {
 
 /// Simulates `scenario` on `model` with the safety filter on (`filter`) or off, calling
 /// `progress` with the fraction done (about a hundred times per run).
+///
+/// The steps: the plant's model ([`plant_model`]), the controller, plant, reference and
+/// record laid out for the scenario, then per tick the sensor's sample ([`NoisySensor`]),
+/// the controller's tick, its tally and row ([`Tally`]), and the plant over the hold
+/// ([`integrate_hold`]); last the summary ([`summarize`]).
 pub fn simulate(
     model: &Model,
     scenario: &Scenario,
@@ -481,27 +486,7 @@ pub fn simulate(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Run, SimulationError> {
     let (nq, nb) = (model.nq(), model.nb());
-    for len in [scenario.initial_q.len(), scenario.initial_qd.len()] {
-        if len != nq {
-            return Err(SimulationError::Size {
-                expected: nq,
-                got: len,
-            });
-        }
-    }
-    let plant_model = match &scenario.plant {
-        Some(robot) => {
-            if let Some(difference) = structure_difference(&model.robot, robot) {
-                return Err(SimulationError::PlantStructure {
-                    file: file_name(&robot.source),
-                    difference,
-                });
-            }
-            // Same structure: the main model's functions (compiled or interpreted).
-            Some(Model::with_generated(robot.clone(), model.generated)?)
-        }
-        None => None,
-    };
+    let plant_model = plant_model(model, scenario)?;
     let mut settings = scenario.controller.clone();
     settings.filter = filter;
     let mut controller = Controller::new(model, settings)?;
@@ -514,124 +499,50 @@ pub fn simulate(
             got: reference.spec().dimension().unwrap_or(0),
         });
     }
-    let period = scenario.control_period;
-    let ticks = (scenario.duration / period).round() as usize;
-    let record_period = scenario.record_period;
-    // Rows recorded strictly between two ticks, at these offsets from the earlier tick.
-    let between = record_period.map_or(0, |r| between_ticks(period, r));
-    let offset = |j: usize| j as f64 * record_period.unwrap_or(period);
-    let rows = ticks.saturating_mul(between + 1).saturating_add(1);
+    let hold = Hold::of(scenario);
+    let ticks = (scenario.duration / hold.period).round() as usize;
+    let rows = ticks.saturating_mul(hold.between + 1).saturating_add(1);
     // The tick's status and its reason (`record::status`), held by the rows after it.
     let mut record = Record::for_columns(
         Columns::for_model(model, &[status::STATUS, status::REASON])?,
         rows,
     );
-    let table = model.generated.barrier_table();
+    let mut tally = Tally::new(model.generated.barrier_table());
     let mut between_barriers = vec![0.0; nb];
-
-    let mut counts = TickCounts::default();
-    let mut relaxed_ticks = vec![0usize; nb];
-    let mut relaxed_now = vec![false; nb];
-    let mut minimum = BarrierMinimum::none();
-    let mut lowest_by_kind = LowestByKind::new(table);
-    let (mut invalid_rows, mut rows_seen) = (0usize, 0usize);
-    let mut max_abs_tau = 0.0_f64;
-    let (mut control_time, mut integration_time) = (Duration::ZERO, Duration::ZERO);
+    let mut times = Times::default();
     let mut stopped = None;
     let report_every = (ticks / 100).max(1);
     // With sensor noise the controller samples a noisy state; the record and the lowest
     // barrier keep the plant's own.
-    let mut noise = scenario.sensor_noise.map(|noise| {
-        (
-            noise,
-            Xoshiro256PlusPlus::seed_from_u64(noise.seed),
-            vec![0.0; nq],
-            vec![0.0; nq],
-            vec![0.0; nb],
-        )
-    });
+    let mut sensor = scenario
+        .sensor_noise
+        .map(|noise| NoisySensor::new(noise, nq, nb));
     let start = Instant::now();
     let mut t = 0.0;
-    'ticks: for k in 0..=ticks {
-        t = k as f64 * period;
+    for k in 0..=ticks {
+        t = k as f64 * hold.period;
         let tick_start = Instant::now();
-        let (sampled_q, sampled_qd) = match &mut noise {
-            Some((spread, draws, q, qd, _)) => {
-                for (sample, &x) in q.iter_mut().zip(plant.q()) {
-                    *sample = x + spread.position * standard_normal(draws);
-                }
-                for (sample, &x) in qd.iter_mut().zip(plant.qd()) {
-                    *sample = x + spread.velocity * standard_normal(draws);
-                }
-                (&q[..], &qd[..])
+        let set_point = reference.sample(t);
+        let status = match &mut sensor {
+            Some(sensor) => {
+                let (q, qd) = sensor.sample(&plant);
+                control::tick(model, &mut controller, q, qd, set_point)
             }
-            None => (plant.q(), plant.qd()),
+            None => control::tick(model, &mut controller, plant.q(), plant.qd(), set_point),
         };
-        let status = control::tick(
-            model,
-            &mut controller,
-            sampled_q,
-            sampled_qd,
-            reference.sample(t),
-        );
-        control_time += tick_start.elapsed();
-        let barriers = match &mut noise {
-            Some((.., true_barriers)) => {
-                model
-                    .generated
-                    .barriers(&model.params, plant.q(), true_barriers);
-                &true_barriers[..]
-            }
+        times.control += tick_start.elapsed();
+        let barriers = match &mut sensor {
+            Some(sensor) => sensor.true_barriers(model, &plant),
             None => controller.barriers(),
         };
-
-        counts.ticks += 1;
-        match status {
-            TickStatus::Unfiltered => counts.unfiltered += 1,
-            TickStatus::Filtered | TickStatus::Relaxed | TickStatus::QpFailed => {
-                counts.qp_solves += 1;
-                let report = controller.qp_report();
-                if report.active > 0 {
-                    counts.active += 1;
-                }
-                if status == TickStatus::Relaxed {
-                    counts.relaxed += 1;
-                    // Rows past the barriers are input limits, not barriers.
-                    // A barrier with several relaxed rows (one per sample of the hold)
-                    // counts once per tick; rows past the barriers are input limits.
-                    relaxed_now.fill(false);
-                    for &row in &report.relaxed_rows {
-                        if let Some(k) = controller.barrier_of_row(row) {
-                            relaxed_now[k] = true;
-                        }
-                    }
-                    for (ticks, _) in relaxed_ticks.iter_mut().zip(&relaxed_now).filter(|p| *p.1) {
-                        *ticks += 1;
-                    }
-                }
-                if status == TickStatus::QpFailed {
-                    counts.failed += 1;
-                }
-            }
-            TickStatus::InvalidState(_) => counts.invalid_state += 1,
-            TickStatus::Uncertified(why) => {
-                counts.qp_solves += 1;
-                counts.uncertified += 1;
-                counts.uncertified_reasons.add(why);
-            }
-        }
-        observe(
-            &mut minimum,
-            &mut lowest_by_kind,
-            (&mut invalid_rows, &mut rows_seen),
-            table,
-            barriers,
-            t,
-        );
+        tally.count(status, &controller);
+        tally.observe(barriers, t);
         let (status_code, reason_code) = status::codes(status);
         let status_columns = [status_code, reason_code];
         let applied = if k < ticks { controller.tau() } else { &[][..] };
-        max_abs_tau = applied.iter().fold(max_abs_tau, |m, v| m.max(v.abs()));
+        tally.max_abs_tau = applied
+            .iter()
+            .fold(tally.max_abs_tau, |m, v| m.max(v.abs()));
         record.push_row(&Row {
             t,
             q: plant.q(),
@@ -651,111 +562,364 @@ pub fn simulate(
         if let Some(state) = controller.dynamics_state() {
             plant.use_evaluation(model, state, controller.dynamics());
         }
-        let tick_time = t;
-        // One piece per recorded instant, the last ending at the next tick (without rows
-        // between ticks: one piece of a whole period). The integrator lands a step on each
-        // instant and carries its step size on, so every piece is under error control.
-        for j in 1..=between + 1 {
-            let step = if j > between {
-                period - offset(between)
-            } else {
-                offset(j) - offset(j - 1)
-            };
-            let step_start = Instant::now();
-            let advanced = plant.advance(step);
-            integration_time += step_start.elapsed();
-            if let Err(error) = advanced {
-                let cause = plant
-                    .last_dynamics_error()
-                    .map_or(String::new(), |e| format!(" ({e})"));
-                stopped = Some(format!("plant integration failed: {error}{cause}"));
-                t = plant.time();
-                break 'ticks;
-            }
-            if j > between {
-                break;
-            }
-            let at = tick_time + offset(j);
-            model
-                .generated
-                .barriers(&model.params, plant.q(), &mut between_barriers);
-            observe(
-                &mut minimum,
-                &mut lowest_by_kind,
-                (&mut invalid_rows, &mut rows_seen),
-                table,
-                &between_barriers,
-                at,
-            );
-            record.push_row(&Row {
-                t: at,
-                q: plant.q(),
-                qd: plant.qd(),
-                tau: controller.tau(),
-                tau_nom: controller.tau_nom(),
-                b: &between_barriers,
-                extra: &status_columns,
-            })?;
+        let mut rows = HoldRows {
+            model,
+            controller: &controller,
+            record: &mut record,
+            tally: &mut tally,
+            barriers: &mut between_barriers,
+            status_columns,
+        };
+        if let Some(why) = integrate_hold(&mut plant, &hold, t, &mut rows, &mut times)? {
+            stopped = Some(why);
+            t = plant.time();
+            break;
         }
         if k % report_every == 0 {
             progress((k + 1) as f64 / ticks.max(1) as f64);
         }
     }
-    let wall_time = start.elapsed().as_secs_f64();
+    times.wall = start.elapsed().as_secs_f64();
     progress(1.0);
-
     let set_point = reference.sample(t).q.to_vec();
+    let ended = Ended {
+        t,
+        set_point,
+        stopped,
+    };
+    let summary = summarize(model, scenario, filter, &plant, &hold, tally, &times, ended);
+    Ok(Run { record, summary })
+}
+
+/// The plant's own model when the scenario gives a plant robot (of the controller robot's
+/// structure: it takes the main model's functions, compiled or interpreted), `None` for the
+/// controller's; the scenario's start checked against the model's size first.
+fn plant_model(model: &Model, scenario: &Scenario) -> Result<Option<Model>, SimulationError> {
+    let nq = model.nq();
+    for len in [scenario.initial_q.len(), scenario.initial_qd.len()] {
+        if len != nq {
+            return Err(SimulationError::Size {
+                expected: nq,
+                got: len,
+            });
+        }
+    }
+    let Some(robot) = &scenario.plant else {
+        return Ok(None);
+    };
+    if let Some(difference) = structure_difference(&model.robot, robot) {
+        return Err(SimulationError::PlantStructure {
+            file: file_name(&robot.source),
+            difference,
+        });
+    }
+    Ok(Some(Model::with_generated(robot.clone(), model.generated)?))
+}
+
+/// The timing of one hold: the control period \[s\] and the rows recorded between two
+/// ticks (`between`, at multiples of the record period \[s\] after the earlier tick).
+struct Hold {
+    period: f64,
+    record_period: Option<f64>,
+    between: usize,
+}
+
+impl Hold {
+    fn of(scenario: &Scenario) -> Hold {
+        let period = scenario.control_period;
+        let record_period = scenario.record_period;
+        Hold {
+            period,
+            record_period,
+            between: record_period.map_or(0, |r| between_ticks(period, r)),
+        }
+    }
+
+    /// The offset \[s\] of the `j`-th row after a tick.
+    fn offset(&self, j: usize) -> f64 {
+        j as f64 * self.record_period.unwrap_or(self.period)
+    }
+
+    /// The `j`-th piece (from 1) of the hold: to the `j`-th recorded instant, the last
+    /// (`j = between + 1`) to the next tick \[s\].
+    fn piece(&self, j: usize) -> f64 {
+        if j > self.between {
+            self.period - self.offset(self.between)
+        } else {
+            self.offset(j) - self.offset(j - 1)
+        }
+    }
+}
+
+/// Where the times a run spends go \[s\]: the controller's ticks, the plant's integration,
+/// the whole run.
+#[derive(Default)]
+struct Times {
+    control: Duration,
+    integration: Duration,
+    wall: f64,
+}
+
+/// The sensor of a run with [`Scenario::sensor_noise`]: the plant's state with Gaussian
+/// noise drawn from the scenario's seed, and the plant's true barriers for the record.
+struct NoisySensor {
+    spread: SensorNoise,
+    draws: Xoshiro256PlusPlus,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    barriers: Vec<f64>,
+}
+
+impl NoisySensor {
+    fn new(spread: SensorNoise, nq: usize, nb: usize) -> NoisySensor {
+        NoisySensor {
+            spread,
+            draws: Xoshiro256PlusPlus::seed_from_u64(spread.seed),
+            q: vec![0.0; nq],
+            qd: vec![0.0; nq],
+            barriers: vec![0.0; nb],
+        }
+    }
+
+    /// A noisy reading `(q, q̇)` of the plant's state.
+    fn sample(&mut self, plant: &Plant) -> (&[f64], &[f64]) {
+        for (sample, &x) in self.q.iter_mut().zip(plant.q()) {
+            *sample = x + self.spread.position * standard_normal(&mut self.draws);
+        }
+        for (sample, &x) in self.qd.iter_mut().zip(plant.qd()) {
+            *sample = x + self.spread.velocity * standard_normal(&mut self.draws);
+        }
+        (&self.q, &self.qd)
+    }
+
+    /// The barriers at the plant's true state.
+    fn true_barriers(&mut self, model: &Model, plant: &Plant) -> &[f64] {
+        model
+            .generated
+            .barriers(&model.params, plant.q(), &mut self.barriers);
+        &self.barriers
+    }
+}
+
+/// What a run counts tick by tick and row by row, for its [`RunSummary`].
+struct Tally<'a> {
+    table: &'a [BarrierInfo],
+    counts: TickCounts,
+    /// Per barrier, the ticks on which at least one of its rows was relaxed.
+    relaxed_ticks: Vec<usize>,
+    relaxed_now: Vec<bool>,
+    minimum: BarrierMinimum,
+    lowest_by_kind: LowestByKind,
+    invalid_rows: usize,
+    rows: usize,
+    /// The largest `|τ|` entry applied \[N\].
+    max_abs_tau: f64,
+}
+
+impl<'a> Tally<'a> {
+    fn new(table: &'a [BarrierInfo]) -> Tally<'a> {
+        Tally {
+            table,
+            counts: TickCounts::default(),
+            relaxed_ticks: vec![0; table.len()],
+            relaxed_now: vec![false; table.len()],
+            minimum: BarrierMinimum::none(),
+            lowest_by_kind: LowestByKind::new(table),
+            invalid_rows: 0,
+            rows: 0,
+            max_abs_tau: 0.0,
+        }
+    }
+
+    /// Counts one tick of `status`, with the QP's report from `controller`.
+    fn count(&mut self, status: TickStatus, controller: &Controller) {
+        let counts = &mut self.counts;
+        counts.ticks += 1;
+        match status {
+            TickStatus::Unfiltered => counts.unfiltered += 1,
+            TickStatus::Filtered | TickStatus::Relaxed | TickStatus::QpFailed => {
+                counts.qp_solves += 1;
+                let report = controller.qp_report();
+                if report.active > 0 {
+                    counts.active += 1;
+                }
+                if status == TickStatus::Relaxed {
+                    counts.relaxed += 1;
+                    // A barrier with several relaxed rows (one per sample of the hold)
+                    // counts once per tick; rows past the barriers are input limits.
+                    self.relaxed_now.fill(false);
+                    for &row in &report.relaxed_rows {
+                        if let Some(k) = controller.barrier_of_row(row) {
+                            self.relaxed_now[k] = true;
+                        }
+                    }
+                    for (ticks, _) in self
+                        .relaxed_ticks
+                        .iter_mut()
+                        .zip(&self.relaxed_now)
+                        .filter(|p| *p.1)
+                    {
+                        *ticks += 1;
+                    }
+                }
+                if status == TickStatus::QpFailed {
+                    counts.failed += 1;
+                }
+            }
+            TickStatus::InvalidState(_) => counts.invalid_state += 1,
+            TickStatus::Uncertified(why) => {
+                counts.qp_solves += 1;
+                counts.uncertified += 1;
+                counts.uncertified_reasons.add(why);
+            }
+        }
+    }
+
+    /// Keeps a row's barrier `values` at time `t` ([`observe`]).
+    fn observe(&mut self, values: &[f64], t: f64) {
+        observe(
+            &mut self.minimum,
+            &mut self.lowest_by_kind,
+            (&mut self.invalid_rows, &mut self.rows),
+            self.table,
+            values,
+            t,
+        );
+    }
+
+    /// The barriers some of whose rows were relaxed, with their tick counts.
+    fn relaxed_barriers(&self) -> Vec<RelaxedBarrier> {
+        self.relaxed_ticks
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| **n > 0)
+            .map(|(barrier, &ticks)| {
+                let (module, corner, label) = owner(self.table, barrier);
+                RelaxedBarrier {
+                    barrier,
+                    module,
+                    corner,
+                    label,
+                    ticks,
+                }
+            })
+            .collect()
+    }
+}
+
+/// What the rows recorded between two ticks write to and read from.
+struct HoldRows<'r, 'a> {
+    model: &'r Model,
+    controller: &'r Controller,
+    record: &'r mut Record,
+    tally: &'r mut Tally<'a>,
+    /// The barriers at a row's state (`nb`).
+    barriers: &'r mut [f64],
+    /// The tick's status and reason codes, held by the rows after it.
+    status_columns: [f64; 2],
+}
+
+/// Integrates `plant` over one hold from the tick at `tick_time` \[s\]: one piece per
+/// recorded instant, the last ending at the next tick (without rows between ticks, one
+/// piece of a whole period). The integrator lands a step on each instant and carries its
+/// step size on, so every piece is under error control. At each instant between ticks the
+/// barriers of the controller's model are recorded and tallied with the held `τ`.
+/// `Ok(Some(why))` when the plant's integration failed (the run ends there).
+fn integrate_hold(
+    plant: &mut Plant,
+    hold: &Hold,
+    tick_time: f64,
+    rows: &mut HoldRows,
+    times: &mut Times,
+) -> Result<Option<String>, SimulationError> {
+    for j in 1..=hold.between + 1 {
+        let step_start = Instant::now();
+        let advanced = plant.advance(hold.piece(j));
+        times.integration += step_start.elapsed();
+        if let Err(error) = advanced {
+            let cause = plant
+                .last_dynamics_error()
+                .map_or(String::new(), |e| format!(" ({e})"));
+            return Ok(Some(format!("plant integration failed: {error}{cause}")));
+        }
+        if j > hold.between {
+            break;
+        }
+        let at = tick_time + hold.offset(j);
+        let model = rows.model;
+        model
+            .generated
+            .barriers(&model.params, plant.q(), rows.barriers);
+        rows.tally.observe(rows.barriers, at);
+        rows.record.push_row(&Row {
+            t: at,
+            q: plant.q(),
+            qd: plant.qd(),
+            tau: rows.controller.tau(),
+            tau_nom: rows.controller.tau_nom(),
+            b: rows.barriers,
+            extra: &rows.status_columns,
+        })?;
+    }
+    Ok(None)
+}
+
+/// How a run ended: the time reached \[s\], the set point then \[m\], and why it stopped
+/// early (if it did).
+struct Ended {
+    t: f64,
+    set_point: Vec<f64>,
+    stopped: Option<String>,
+}
+
+/// The run's [`RunSummary`] from its tally, times and end.
+#[allow(clippy::too_many_arguments)]
+fn summarize(
+    model: &Model,
+    scenario: &Scenario,
+    filter: bool,
+    plant: &Plant,
+    hold: &Hold,
+    tally: Tally,
+    times: &Times,
+    ended: Ended,
+) -> RunSummary {
     let final_q = plant.q().to_vec();
     let set_point_error = final_q
         .iter()
-        .zip(&set_point)
+        .zip(&ended.set_point)
         .map(|(a, b)| (a - b) * (a - b))
         .sum::<f64>()
         .sqrt();
-    let relaxed_barriers = relaxed_ticks
-        .iter()
-        .enumerate()
-        .filter(|(_, n)| **n > 0)
-        .map(|(barrier, &ticks)| {
-            let (module, corner, label) = owner(table, barrier);
-            RelaxedBarrier {
-                barrier,
-                module,
-                corner,
-                label,
-                ticks,
-            }
-        })
-        .collect();
+    let relaxed_barriers = tally.relaxed_barriers();
     let stats = plant.stats();
-    let summary = RunSummary {
+    RunSummary {
         controller: if filter { "filter" } else { "pd" },
         scenario: scenario.name.clone(),
         robot: model.robot.name.clone(),
-        duration: t,
-        control_period: period,
-        record_period,
-        dense: between > 0,
-        min_barrier: minimum,
-        invalid_rows,
-        rows: rows_seen,
-        lowest_by_kind,
+        duration: ended.t,
+        control_period: hold.period,
+        record_period: hold.record_period,
+        dense: hold.between > 0,
+        min_barrier: tally.minimum,
+        invalid_rows: tally.invalid_rows,
+        rows: tally.rows,
+        lowest_by_kind: tally.lowest_by_kind,
         final_q,
-        set_point,
+        set_point: ended.set_point,
         set_point_error,
-        max_abs_tau,
-        counts,
+        max_abs_tau: tally.max_abs_tau,
+        counts: tally.counts,
         relaxed_barriers,
         integrator_steps: stats.steps,
         integrator_rejected: stats.rejected,
         integrator_rhs_evals: stats.rhs_evals,
         integrator_w_factorizations: stats.w_factorizations,
-        wall_time,
-        control_time: control_time.as_secs_f64(),
-        integration_time: integration_time.as_secs_f64(),
-        real_time_factor: t / wall_time.max(1e-12),
-        stopped,
+        wall_time: times.wall,
+        control_time: times.control.as_secs_f64(),
+        integration_time: times.integration.as_secs_f64(),
+        real_time_factor: ended.t / times.wall.max(1e-12),
+        stopped: ended.stopped,
         settings: settings_report(model, scenario, filter),
-    };
-    Ok(Run { record, summary })
+    }
 }
