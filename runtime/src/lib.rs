@@ -66,13 +66,13 @@ pub use softcbf_core::{
 pub use softcbf_figures::plot;
 pub use softcbf_protocol as protocol;
 
+// A run's files and views (softcbf-outputs), the hardware path (softcbf-hardware),
+// identification (softcbf-identify) and verification (softcbf-verify), under the module
+// names they had in this crate.
+pub use softcbf_hardware as hardware;
+pub use softcbf_identify as identify;
+pub use softcbf_outputs::{frames, mcap_log, output, replot, view};
+pub use softcbf_verify as verify;
+
 pub mod cli;
-pub mod frames;
-pub mod hardware;
-pub mod identify;
 pub mod inspect;
-pub mod mcap_log;
-pub mod output;
-pub mod replot;
-pub mod verify;
-pub mod view;
