@@ -475,10 +475,10 @@ pub struct Run {
 /// Simulates `scenario` on `model` with the safety filter on (`filter`) or off, calling
 /// `progress` with the fraction done (about a hundred times per run).
 ///
-/// The steps: the plant's model ([`plant_model`]), the controller, plant, reference and
-/// record laid out for the scenario, then per tick the sensor's sample ([`NoisySensor`]),
-/// the controller's tick, its tally and row ([`Tally`]), and the plant over the hold
-/// ([`integrate_hold`]); last the summary ([`summarize`]).
+/// The steps: the plant's model (`plant_model`), the controller, plant, reference and
+/// record laid out for the scenario, then per tick the sensor's sample (`NoisySensor`),
+/// the controller's tick, its tally and row (`Tally`), and the plant over the hold
+/// (`integrate_hold`); last the summary (`summarize`).
 pub fn simulate(
     model: &Model,
     scenario: &Scenario,
