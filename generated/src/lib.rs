@@ -9,17 +9,12 @@
 //! and `SOURCE`, the generated text it was compiled from (`golden/paper_sim.rs` is the
 //! checked-in copy of the paper robot's, compared by the `golden` test of softcbf-tests).
 //! [`find`] picks the model of a structure. Numbers are never compiled in: every function
-//! takes the parameter vector `p` laid out by `softcbf_description::layout`. With the
-//! feature `interpreter`, `interpreted` gives the model of any structure, evaluated at run
-//! time from the same expressions (module `interpreter`; several times slower).
+//! takes the parameter vector `p` laid out by `softcbf_description::layout`. The crate
+//! `softcbf-interpreter` (`generated/interpreter`) gives the model of any structure,
+//! evaluated at run time from the same expressions (several times slower).
 
 pub use softcbf_description::barriers::{BarrierKind, KindGroup, Point};
 pub use softcbf_interval::{Dual, Interval};
-
-#[cfg(feature = "interpreter")]
-pub mod interpreter;
-#[cfg(feature = "interpreter")]
-pub use interpreter::interpreted;
 
 /// One row of a model's barrier table: which barrier sits at an index of the barrier
 /// arrays (`barriers`, the Jacobian rows, `J̇q̇`). The rows are those of

@@ -15,7 +15,7 @@ use softcbf::model::Model;
 use softcbf::scenario::{Overrides, ScenarioFile};
 use softcbf::sim::simulate;
 use softcbf_description::robot::Robot;
-use softcbf_generated::interpreted;
+use softcbf_interpreter::interpreted;
 
 /// Number of states cycled through.
 const STATES: usize = 64;

@@ -98,7 +98,7 @@ impl Model {
     }
 
     /// Joins a robot to the given model functions of its structure: a compiled model, one
-    /// interpreted at run time (`softcbf_generated::interpreted`, feature `interpreter`),
+    /// interpreted at run time (`softcbf_interpreter::interpreted`),
     /// or the model of another robot of the same structure. Refused
     /// ([`ModelError::StructureMismatch`]) if `generated` is for another structure.
     pub fn with_generated(

@@ -33,7 +33,7 @@ impl Robot {
 }
 
 /// The model of `robot`: its compiled model if this build has one; else, with
-/// `interpreted`, the model interpreted at run time (`softcbf_generated::interpreted`),
+/// `interpreted`, the model interpreted at run time (`softcbf_interpreter::interpreted`),
 /// with a `RuntimeWarning` that says so, what it costs and how to build compiled code;
 /// else `NoGeneratedModelError` with that command.
 pub fn build_model(
@@ -46,7 +46,7 @@ pub fn build_model(
         Err(error @ ModelError::NoGeneratedModel { .. }) if interpreted => {
             interpreted_warning(py, &error)?;
             let structure = robot.structure();
-            let generated = py.detach(|| softcbf_generated::interpreted(&structure));
+            let generated = py.detach(|| softcbf_interpreter::interpreted(&structure));
             Model::with_generated(robot, generated)
                 .map(Arc::new)
                 .map_err(|e| model_error(&e))

@@ -1,4 +1,4 @@
-//! The interpreted model (`softcbf_generated::interpreted`) against the compiled one: every
+//! The interpreted model (`softcbf_interpreter::interpreted`) against the compiled one: every
 //! trait function of every compiled model at random states and near the small-θ switch
 //! points, bit for bit; its analytic functions against the emitted series; a closed loop.
 
@@ -12,7 +12,8 @@ use softcbf::sim::simulate;
 use softcbf_codegen::analytic::{MAX_ORDER, SWITCH_POINTS};
 use softcbf_codegen::registry;
 use softcbf_description::robot::{Robot, Structure};
-use softcbf_generated::{GeneratedModel, MODELS, interpreted};
+use softcbf_generated::{GeneratedModel, MODELS};
+use softcbf_interpreter::interpreted;
 use softcbf_tests::alloc::allocations;
 use softcbf_tests::{TestRng, analytic::pcc_fs_fc_6};
 

@@ -1,4 +1,4 @@
-//! The model of any structure evaluated at run time (feature `interpreter`): codegen's
+//! softcbf-interpreter: the model of any structure evaluated at run time: codegen's
 //! expressions for the structure, scheduled once, run by `softcbf_codegen::eval`.
 //!
 //! A slower fallback for a structure that was not compiled in: [`interpreted`] builds the
@@ -15,7 +15,7 @@ use softcbf_codegen::eval::Compiled;
 use softcbf_codegen::model::build;
 use softcbf_description::robot::{Routing, Structure};
 
-use crate::{BarrierInfo, Dual, GeneratedModel, Interval};
+use softcbf_generated::{BarrierInfo, Dual, GeneratedModel, Interval};
 
 /// A structure's model run by the interpreter; see [`interpreted`].
 pub struct Interpreted {
