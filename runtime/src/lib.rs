@@ -57,9 +57,9 @@
 
 // The controller core, re-exported so that `softcbf::control` and the rest keep their paths.
 pub use softcbf_core::{
-    barrier_info, control, dynamics, enclosure, exit, hardware_description, hold, integrator,
-    linalg, model, noise, plant, qp, record, reference, robot_file, scenario, settings, sim,
-    spatial, verdict,
+    barrier_info, control, dynamics, enclosure, exit, hardware_description, hold, inspect,
+    integrator, linalg, model, noise, plant, qp, record, reference, robot_file, scenario, settings,
+    sim, spatial, verdict,
 };
 
 // The wings of their own: the figures and the Dynamixel codec, under their old names too.
@@ -75,4 +75,3 @@ pub use softcbf_outputs::{frames, mcap_log, output, replot, view};
 pub use softcbf_verify as verify;
 
 pub mod cli;
-pub mod inspect;

@@ -21,6 +21,8 @@
 //! | [`reference`](mod@reference) | what the controller tracks: set points and minimum-jerk waypoints |
 //! | [`scenario`] | scenario files: robot, initial state, reference, gains, period, duration |
 //! | [`settings`] | which value of each setting a run uses and where it came from (command line > scenario > robot > built-in) |
+//! | [`simulate_options`] | what a simulation is told besides its scenario file (command line, Python), checked |
+//! | [`inspect`] | `softcbf model`: every generated and dynamic quantity at one state, as JSON |
 //! | [`sim`] | the closed-loop simulator: ticks on the sampled state, the plant in between |
 //! | [`record`] | a run's trajectory, one row per tick (CSV in and out) |
 //! | [`robot_file`] | a robot file loaded and checked as a whole (`[hardware]` included); the embedded paper robot |
@@ -35,6 +37,7 @@ pub mod enclosure;
 pub mod exit;
 pub mod hardware_description;
 pub mod hold;
+pub mod inspect;
 pub mod integrator;
 pub mod linalg;
 pub mod model;
@@ -47,5 +50,6 @@ pub mod robot_file;
 pub mod scenario;
 pub mod settings;
 pub mod sim;
+pub mod simulate_options;
 pub mod spatial;
 pub mod verdict;

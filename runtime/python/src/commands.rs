@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use clap::Parser;
 use pyo3::prelude::*;
 
-use softcbf::identify::IdentifyArgs;
-use softcbf::output::Console;
-use softcbf::verify::cli::VerifyArgs;
+use softcbf_identify::IdentifyArgs;
+use softcbf_outputs::output::Console;
+use softcbf_verify::cli::VerifyArgs;
 
 use crate::errors::value_error;
 
@@ -32,7 +32,7 @@ pub fn run_verify(py: Python<'_>, args: Vec<String>) -> PyResult<u8> {
                 .replace("\n\nFor more information, try '--help'.", ""),
         )
     })?;
-    py.detach(|| softcbf::verify::cli::verify(command.args, &mut Console::new()))
+    py.detach(|| softcbf_verify::cli::verify(command.args, &mut Console::new()))
         .map_err(value_error)
 }
 
@@ -57,6 +57,6 @@ pub fn run_identify(
         half_width,
         timing_uncertainty_ms,
     };
-    py.detach(|| softcbf::identify::run(args, &mut Console::new()))
+    py.detach(|| softcbf_identify::run(args, &mut Console::new()))
         .map_err(value_error)
 }

@@ -9,10 +9,12 @@ use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
-use softcbf::control::{ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus, tick};
-use softcbf::model::Model;
-use softcbf::settings::check_number;
-use softcbf::settings::{GainOptions, ScenarioGains, resolve_gains};
+use softcbf_core::control::{
+    ControllerSettings, InvalidState, Reference, SafetyMode, TickStatus, tick,
+};
+use softcbf_core::model::Model;
+use softcbf_core::settings::check_number;
+use softcbf_core::settings::{GainOptions, ScenarioGains, resolve_gains};
 use softcbf_description::limits;
 
 use crate::convert::vector;
@@ -29,7 +31,7 @@ use crate::robot::Robot;
 #[pyclass(module = "softcbf")]
 pub struct Controller {
     model: Arc<Model>,
-    controller: softcbf::control::Controller,
+    controller: softcbf_core::control::Controller,
     zeros: Vec<f64>,
     status: TickStatus,
 }
@@ -82,7 +84,7 @@ impl Controller {
             Some(name) => {
                 SafetyMode::parse(name).map_err(|e| value_error(format!("safety: {e}")))?
             }
-            None => softcbf::hardware_description::load(&model.robot)
+            None => softcbf_core::hardware_description::load(&model.robot)
                 .ok()
                 .flatten()
                 .and_then(|hardware| hardware.safety)
@@ -94,7 +96,7 @@ impl Controller {
             hold: period,
             ..resolve_gains(&gains, &ScenarioGains::default(), &model.robot).controller_settings()
         };
-        let controller = softcbf::control::Controller::new(&model, settings)
+        let controller = softcbf_core::control::Controller::new(&model, settings)
             .map_err(|e| value_error(e.to_string()))?;
         let zeros = vec![0.0; model.nq()];
         Ok(Controller {

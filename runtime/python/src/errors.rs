@@ -5,7 +5,7 @@ use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueEr
 use pyo3::prelude::*;
 use pyo3::types::PyAnyMethods;
 
-use softcbf::model::ModelError;
+use softcbf_core::model::ModelError;
 use softcbf_description::toml_file::{FileError, shell_word};
 
 pyo3::create_exception!(

@@ -7,12 +7,12 @@ use std::sync::Arc;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use softcbf::inspect::model_report;
-use softcbf::record::Columns;
+use softcbf_core::inspect::model_report;
+use softcbf_core::record::Columns;
 use softcbf_description::domain;
 
 use crate::convert::{finite_vector, json_to_python};
-use softcbf::model::{Model, ModelError};
+use softcbf_core::model::{Model, ModelError};
 
 use crate::errors::{file_error, interpreted_warning, model_error, value_error};
 
@@ -60,7 +60,7 @@ impl Robot {
     /// Reads and checks the robot file at `path` (TOML; format in robots/README.md).
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Robot> {
-        softcbf::robot_file::load_robot(Some(&path))
+        softcbf_core::robot_file::load_robot(Some(&path))
             .map(|robot| Robot { robot })
             .map_err(|e| file_error(py, &e))
     }
@@ -68,7 +68,7 @@ impl Robot {
     /// The paper's simulated robot (two modules), embedded in the package.
     #[staticmethod]
     fn paper_sim(py: Python<'_>) -> PyResult<Robot> {
-        softcbf::robot_file::load_robot(None)
+        softcbf_core::robot_file::load_robot(None)
             .map(|robot| Robot { robot })
             .map_err(|e| file_error(py, &e))
     }
@@ -100,7 +100,7 @@ impl Robot {
     /// The coordinates' names as the CSV columns give them: `dx1`, `dy1`, `dL1`, `dx2`, ….
     #[getter]
     fn coordinate_names(&self) -> Vec<String> {
-        softcbf::record::coordinate_names(3 * self.robot.modules.len())
+        softcbf_core::record::coordinate_names(3 * self.robot.modules.len())
     }
 
     /// The robot joined to its generated model. A structure this build has no compiled

@@ -10,14 +10,14 @@ use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
-use softcbf::cli::{SimulateOptions, check_simulate_options};
-use softcbf::control::SafetyMode;
-use softcbf::model::Model;
-use softcbf::output::write_outputs;
-use softcbf::record::Record;
-use softcbf::robot_file::load_robot;
-use softcbf::scenario::ScenarioFile;
-use softcbf::sim::{Run, simulate as run_simulation};
+use softcbf_core::control::SafetyMode;
+use softcbf_core::model::Model;
+use softcbf_core::record::Record;
+use softcbf_core::robot_file::load_robot;
+use softcbf_core::scenario::ScenarioFile;
+use softcbf_core::sim::{Run, simulate as run_simulation};
+use softcbf_core::simulate_options::{SimulateOptions, check_simulate_options};
+use softcbf_outputs::output::write_outputs;
 
 use crate::convert::{dict_to_toml, finite_vector, json_to_python};
 use crate::errors::{SimulationError, file_error, value_error};
@@ -127,9 +127,9 @@ pub fn simulate(
     let overrides = check_simulate_options(options, &model.robot, &|name| name.to_string())
         .map_err(value_error)?;
     let scenario = file.resolve_with(&model, &overrides).map_err(|e| match e {
-        softcbf::scenario::ScenarioError::File(e) => file_error(py, &e),
-        softcbf::scenario::ScenarioError::Option(message)
-        | softcbf::scenario::ScenarioError::Missing(message) => value_error(message),
+        softcbf_core::scenario::ScenarioError::File(e) => file_error(py, &e),
+        softcbf_core::scenario::ScenarioError::Option(message)
+        | softcbf_core::scenario::ScenarioError::Missing(message) => value_error(message),
     })?;
     let filter = scenario.controller.filter;
     let compare = filter && scenario.compare;
@@ -142,7 +142,7 @@ pub fn simulate(
             } else {
                 None
             };
-            Ok::<_, softcbf::sim::SimulationError>((main, comparison))
+            Ok::<_, softcbf_core::sim::SimulationError>((main, comparison))
         })
         .map_err(|e| SimulationError::new_err(e.to_string()))?;
     Ok(SimulationResult {
@@ -268,6 +268,6 @@ impl SimulationResult {
     }
 
     fn __repr__(&self) -> String {
-        softcbf::output::one_line(&self.run.summary)
+        softcbf_outputs::output::one_line(&self.run.summary)
     }
 }
