@@ -557,7 +557,9 @@ fn interrupt_after(child: &std::process::Child, out: &Path, rows: usize, signal:
 #[test]
 fn an_interrupted_batch_keeps_its_runs_and_resumes_to_the_same_bytes() {
     let dir = temp_dir("resume");
-    let runs = 600;
+    // Enough that each interrupted batch is still running when its signal comes (a signal
+    // follows its third new row within milliseconds; a run takes tens of them).
+    let runs = 200;
     let scenario = small_scenario(&dir, runs, "");
     let scenario = scenario.to_str().unwrap();
     let reference = dir.join("reference");
@@ -625,7 +627,7 @@ fn an_interrupted_batch_keeps_its_runs_and_resumes_to_the_same_bytes() {
     // Another batch's settings are refused, naming what differs; so is starting over.
     for (extra, fragment) in [
         (&["--seed", "2"][..], "seed 1 vs 2"),
-        (&["--runs", "500"][..], "600 vs 500 runs"),
+        (&["--runs", "150"][..], "200 vs 150 runs"),
         (&["--shard", "0/2"][..], "shard 0/1 vs 0/2"),
     ] {
         let mut args = vec![
