@@ -434,7 +434,7 @@ fn late_readings_are_predicted_to_when_the_command_lands() {
     // the prediction is compared while the robot moves.
     let mut robot = example();
     robot.uncertainty = Default::default();
-    let out = run_with(robot, faults, 2.0, None);
+    let out = run_with(robot, faults, 3.0, None);
     println!("{:#?}", out.summary);
     assert_eq!(out.summary.stop, StopReason::Duration);
     assert!(out.summary.max_age > 0.030, "age {}", out.summary.max_age);
@@ -466,7 +466,10 @@ fn late_readings_are_predicted_to_when_the_command_lands() {
         rms(predicted_error),
         rms(stale_error)
     );
-    assert!(compared > 40, "{compared} commands compared");
+    // The emulator runs in real time: a loaded machine fits fewer commands into the run (40
+    // of 2 s once, with the certified attempts out of their budget on 27 ticks). 20 are
+    // enough for the two RMS errors below; 3 s leave room for three times fewer than idle.
+    assert!(compared >= 20, "{compared} commands compared");
     // The position resolution of the servos is 0.07 mm of tendon.
     assert!(rms(predicted_error) < 3e-4, "{:e}", rms(predicted_error));
     // The prediction's floor is the resolution; the reading's error is the motion over
