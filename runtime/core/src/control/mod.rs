@@ -484,6 +484,17 @@ struct SampledWorkspace {
     /// `ḃ_k + p1 b_k` at the end of the hold under that command, one per barrier.
     end_values: Vec<f64>,
     start: Vec<f64>,
+    /// The barriers at the tick, one per barrier.
+    start_values: Vec<f64>,
+    /// The barriers at a step of the plant's integration between two samples (scratch).
+    dense_values: Vec<f64>,
+    /// How far each barrier fell below its threshold between the last two samples
+    /// integrated with watching on (`−∞`: nowhere): see [`SampledWorkspace::advance`].
+    shortfall: Vec<f64>,
+    /// The samples' rows' margins for what their barriers did between samples, raised by
+    /// the check where the command's own motion dipped there (sample-major; zero at each
+    /// tick's start).
+    dip: Vec<f64>,
 }
 
 /// One plant at a corner of the declared box: one group of numbers off at a time.
@@ -1068,18 +1079,46 @@ impl SampledWorkspace {
     /// `j`, moving `*time` there, and evaluates the barrier terms at the state reached
     /// (`point`, `values`, `jacobian`). `false` where the integration fails, the state
     /// leaves the model's domain or a barrier term is not finite.
-    fn advance(&mut self, model: &Model, time: &mut f64, j: usize) -> bool {
+    ///
+    /// With `watch`, also the barriers at every step the integrator takes between the two
+    /// samples: `shortfall[k]` becomes how far barrier `k` fell below
+    /// `min(0, floor before, floor after)` there (the floor before sample 0 is the barrier
+    /// at the tick), `−∞` where it did not come below. The steps are the integrator's own
+    /// (watching does not change them); a barrier that is not a number at a step (a state
+    /// outside the domain) is left to the sample's check.
+    fn advance(&mut self, model: &Model, time: &mut f64, j: usize, watch: bool) -> bool {
         let nq = self.point.len();
+        let nb = self.values.len();
         let next = self.prediction.time(j);
         let mut system = PlantSystem {
             model,
             workspace: &mut self.plant,
         };
-        if self
-            .integrator
-            .integrate(&mut system, *time, next, &mut self.state)
-            .is_err()
-        {
+        let integrated = if watch {
+            self.shortfall.fill(f64::NEG_INFINITY);
+            let (floor, start_values) = (&self.floor, &self.start_values);
+            let (dense, shortfall) = (&mut self.dense_values, &mut self.shortfall);
+            self.integrator
+                .integrate_observed(&mut system, *time, next, &mut self.state, |_, x| {
+                    model.generated.barriers(&model.params, &x[..nq], dense);
+                    for k in 0..nb {
+                        let before = if j == 0 {
+                            start_values[k]
+                        } else {
+                            floor[(j - 1) * nb + k]
+                        };
+                        let threshold = before.min(floor[j * nb + k]).min(0.0);
+                        let below = threshold - dense[k];
+                        if below > shortfall[k] {
+                            shortfall[k] = below;
+                        }
+                    }
+                })
+        } else {
+            self.integrator
+                .integrate(&mut system, *time, next, &mut self.state)
+        };
+        if integrated.is_err() {
             return false;
         }
         *time = next;
@@ -1134,6 +1173,10 @@ impl SampledWorkspace {
             sample_values: vec![0.0; nb * samples],
             end_values: vec![0.0; nb],
             start: vec![0.0; 2 * nq],
+            start_values: vec![0.0; nb],
+            dense_values: vec![0.0; nb],
+            shortfall: vec![f64::NEG_INFINITY; nb],
+            dip: vec![0.0; nb * samples],
         }
     }
 }
@@ -1743,7 +1786,9 @@ pub(super) fn sampled_filter(
             let t = sampled.prediction.time(j);
             sampled.floor[j * nb + k] = comparison(b, b_dot, p1, p2, t).max(lowest);
         }
+        sampled.start_values[k] = b;
     }
+    sampled.dip.fill(0.0);
 
     // Pass 1: b_k(q₀ + e) ≈ b_k + J_k e.
     for j in 0..m {
@@ -1842,9 +1887,27 @@ pub(super) fn sampled_filter(
             // The motion under the previous command, integrated to t_j; where the
             // integration fails or leaves the model's domain, the rows of the previous pass
             // stay for this sample and every later one.
-            if !sampled.advance(model, &mut time, j) {
+            if !sampled.advance(model, &mut time, j, checking) {
                 miss = f64::INFINITY;
                 break;
+            }
+            if checking {
+                // Between the samples: where the motion dipped below zero (below the
+                // floors, for a barrier already below), the rows of the two samples around
+                // the dip are raised by more than its depth for the next pass.
+                for k in 0..nb {
+                    let below = sampled.shortfall[k];
+                    if below > CHECK_TOLERANCE {
+                        miss = miss.max(below);
+                        let raise = DIP_INFLATION * below;
+                        sampled.dip[j * nb + k] += raise;
+                        if j > 0 {
+                            let r = (j - 1) * nb + k;
+                            sampled.dip[r] += raise;
+                            controller.rhs[r] += raise;
+                        }
+                    }
+                }
             }
             let forced = sampled.prediction.forced(j);
             for k in 0..nb {
@@ -1853,17 +1916,14 @@ pub(super) fn sampled_filter(
                 let margin = sampled
                     .robust
                     .as_ref()
-                    .map_or(0.0, |robust| robust.margin[r]);
+                    .map_or(0.0, |robust| robust.margin[r])
+                    + sampled.dip[r];
                 miss = miss.max(sampled.floor[r] + margin - sampled.values[k]);
                 sampled.sample_values[r] = sampled.values[k];
                 let row = &mut controller.rows[r * nq..(r + 1) * nq];
                 forced_row(jacobian_row, forced, nq, row);
-                controller.rhs[r] = sampled.floor[r] - sampled.values[k]
-                    + dot(row, &sampled.guess)
-                    + sampled
-                        .robust
-                        .as_ref()
-                        .map_or(0.0, |robust| robust.margin[r]);
+                controller.rhs[r] =
+                    sampled.floor[r] - sampled.values[k] + dot(row, &sampled.guess) + margin;
             }
             if let Some(rates) = controller.rates.as_ref() {
                 let slots = RateRows::samples(&sampled.prediction);
@@ -1993,7 +2053,7 @@ fn sensitivity_rows(model: &Model, controller: &mut Controller, m: usize) {
         sampled.integrator.reset();
         let mut time = 0.0;
         for j in 0..m {
-            if !sampled.advance(model, &mut time, j) {
+            if !sampled.advance(model, &mut time, j, false) {
                 break;
             }
             for k in 0..nb {
@@ -2021,7 +2081,7 @@ fn sensitivity_rows(model: &Model, controller: &mut Controller, m: usize) {
             .map_or(0.0, |robust| robust.margin[r]);
         let row = &controller.rows[r * nq..(r + 1) * nq];
         let (floor, value) = if r < m * nb {
-            (sampled.floor[r], sampled.sample_values[r])
+            (sampled.floor[r] + sampled.dip[r], sampled.sample_values[r])
         } else {
             (0.0, sampled.end_values[r - m * nb])
         };
@@ -2038,6 +2098,10 @@ const CHECK_PASSES: usize = 4;
 /// the rows are linearized at the previous command, and a command that meets them misses
 /// by the linearization's second-order remainder.
 const CHECK_TOLERANCE: f64 = 1e-8;
+/// Where the check finds a barrier dipping between two samples, the two samples' rows are
+/// raised by this times the dip's depth (the dip of the next command's motion is about as
+/// deep as this one's, lifted by what the samples are).
+const DIP_INFLATION: f64 = 1.5;
 
 /// Which of the predicted rows gave way on the last tick, where they had no common point:
 /// the end-of-hold rows' robust margins first, before any row is relaxed (docs/model.md §5,

@@ -229,6 +229,20 @@ impl Rosenbrock {
         t1: f64,
         x: &mut [f64],
     ) -> Result<Stats, IntegratorError> {
+        self.integrate_observed(sys, t0, t1, x, |_, _| {})
+    }
+
+    /// [`Rosenbrock::integrate`], calling `observe(t, x)` at every accepted step that ends
+    /// before `t1` (not at `t0`, not at `t1`). The observer only reads: the steps taken and
+    /// the result are those of `integrate`, bit for bit.
+    pub fn integrate_observed<S: WSolve + ?Sized, O: FnMut(f64, &[f64])>(
+        &mut self,
+        sys: &mut S,
+        t0: f64,
+        t1: f64,
+        x: &mut [f64],
+        mut observe: O,
+    ) -> Result<Stats, IntegratorError> {
         check_call(self.dim, sys.dim(), x, t0, t1)?;
         if t1 < t0 {
             return Err(IntegratorError::InvalidTolerances { field: "t1 < t0" });
@@ -271,6 +285,9 @@ impl Rosenbrock {
                     stats.steps += 1;
                     t = if truncated { t1 } else { t + h };
                     x.copy_from_slice(&self.x_new);
+                    if t < t1 {
+                        observe(t, x);
+                    }
                     need_f0 = true;
                     let mut fac = 0.9 * en.max(1e-10).powf(-1.0 / 3.0);
                     fac = fac.clamp(0.2, 6.0);
