@@ -105,7 +105,7 @@ struct SimulateArgs {
     #[arg(long)]
     view: bool,
     /// A filtered run whose lowest barrier falls below this (m) is unsafe (exit status 3).
-    #[arg(long, default_value_t = limits::DEFAULT_BARRIER_THRESHOLD, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = limits::DEFAULT_SIMULATION_THRESHOLD, allow_negative_numbers = true)]
     barrier_threshold: f64,
 }
 

@@ -327,8 +327,15 @@ pub const RATE_HZ: Limit = Limit::closed(1.0, 10_000.0, "Hz");
 pub const DURATION_S: Limit = Limit::above(0.0, 1e6, "s");
 /// Lowest barrier a run may reach and still count as safe \[m\].
 pub const BARRIER_THRESHOLD_M: Limit = Limit::closed(-1.0, 1.0, "m");
-/// Default of [`BARRIER_THRESHOLD_M`]: one millimetre of penetration of the margin.
+/// Default of [`BARRIER_THRESHOLD_M`] for a hardware run (`softcbf run`): one millimetre of
+/// penetration of the margin. Its barriers are taken at the states read, which carry the
+/// encoders' quantization and the model's error against the robot.
 pub const DEFAULT_BARRIER_THRESHOLD: f64 = -1e-3;
+/// Default of [`BARRIER_THRESHOLD_M`] for `softcbf simulate`: [`BARRIER_TOLERANCE_M`] below
+/// zero, as `softcbf verify` judges its runs and the figures draw them. A simulation's plant
+/// is the model (or a declared plant), integrated to `atol` 1e-9, so a barrier further below
+/// zero is a violation, not a reading's error.
+pub const DEFAULT_SIMULATION_THRESHOLD: f64 = -BARRIER_TOLERANCE_M;
 /// How far below zero a barrier may be and still count as held at zero \[m\]: a filter that
 /// holds a barrier on its boundary ends within rounding of zero, on either side (−1.6e-12 m
 /// and +5e-14 m were seen), and the integrator's tolerance (`atol` 1e-9) is far smaller.

@@ -46,10 +46,11 @@ pub const MEANINGS: [(u8, [&str; 4]); 5] = [
         OK,
         [
             "safe: every tick filtered with a verified command at a valid state, no barrier \
-             row relaxed, every recorded barrier at or above `--barrier-threshold` (default −1 mm)",
+             row relaxed, every recorded barrier at or above `--barrier-threshold` (default −1e-6 m)",
             "every run safe (each judged as `simulate` judges it)",
-            "safe as for `simulate`, at the states read, with at most `--max-overrun-fraction` \
-             (default 5 %) of the deadlines and of the holds missed",
+            "safe as for `simulate`, at the states read (`--barrier-threshold` default −1 mm), \
+             with at most `--max-overrun-fraction` (default 5 %) of the deadlines and of the \
+             holds missed",
             "done (`model`: every value finite; `emulate`: stopped by a signal)",
         ],
     ),

@@ -22,7 +22,7 @@ pub const DEFAULT_RECORD_PERIOD: f64 = 1e-3;
 /// Default threshold: a run whose lowest barrier falls below it is unsafe (m or rad): the
 /// tolerance within which a barrier counts as held at zero, the figures' too
 /// ([`softcbf_description::limits::BARRIER_TOLERANCE_M`]).
-pub const DEFAULT_THRESHOLD: f64 = -softcbf_description::limits::BARRIER_TOLERANCE_M;
+pub const DEFAULT_THRESHOLD: f64 = softcbf_description::limits::DEFAULT_SIMULATION_THRESHOLD;
 /// Draws of an initial state before giving up on finding one the guarantee covers
 /// ([`StartSet`]).
 pub const INITIAL_STATE_TRIES: usize = 1000;
