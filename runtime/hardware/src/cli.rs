@@ -31,6 +31,10 @@ use crate::settings::{
 use crate::signal;
 use crate::sim::BarrierMinimum;
 use crate::status_line::{ExperimentProgress, StatusLine};
+use crate::summary_file::{
+    self, BusCheck, Clamps, ExperimentDesign, ExperimentSummary, HardwareSummary, LevelSummary,
+    Lowest, TorqueOff,
+};
 use crate::verdict::Limits as VerdictLimits;
 use softcbf_description::toml_file::shell_word;
 use softcbf_outputs::parse::{parse_coordinates, parse_number};
@@ -960,16 +964,9 @@ pub fn run_settings_report(
     }
 }
 
-/// Writes `dir/summary.json`: the settings, the verdict and the counts of a hardware run,
-/// with `controller` and `set_point` as `softcbf simulate` writes them; the lowest barrier
-/// overall (`min_barrier`) and per kind group (`lowest_by_kind`, keyed by
-/// `KindGroup::key`), each with `value` (`null` when no reading was made), `label`, `t`
-/// and `unit`; the deadlines (`deadline_overruns`, `hold_overruns`, `longest_period` and
-/// `longest_hold_excess` in s); the loop rate run at (`loop_rate`, Hz, and
-/// `rate_from_bus`), the bus check (`bus_check`: cycle times in s, `rate_limit` in Hz) and
-/// the adapter's `latency_timer_ms` (`null` when unknown or absent); `interventions`, the
-/// ticks whose command the filter changed; `experiment` ([`experiment_json`], `null` in a
-/// run toward a set point, whose `set_point` is then `null`).
+/// Writes `dir/summary.json` ([`HardwareSummary`], which says what each field holds): the
+/// settings, the verdict and the counts of a hardware run, with `controller` and
+/// `set_point` as `softcbf simulate` writes them.
 fn write_summary(
     dir: &Path,
     settings: &SettingsReport,
@@ -985,129 +982,131 @@ fn write_summary(
         Verdict::Fault(why) => format!("fault: {why}"),
     };
     let finite = |v: f64| v.is_finite().then_some(v);
-    let lowest = |b: &BarrierMinimum| {
-        serde_json::json!({
-            "value": finite(b.value),
-            "label": b.label,
-            "t": b.t,
-            "unit": b.unit,
-        })
+    let lowest = |b: &BarrierMinimum| Lowest {
+        value: finite(b.value),
+        label: b.label.to_string(),
+        t: b.t,
+        unit: b.unit.to_string(),
     };
-    let summary = serde_json::json!({
-        "controller": if settings.filter.value { "filter" } else { "pd" },
-        "robot": settings.robot.name,
-        "hardware": true,
-        "set_point": (!set_point.is_empty()).then_some(set_point),
-        "verdict": verdict,
-        "stopped": s.stop.to_string(),
-        "ticks": s.ticks,
-        "commands": s.commands,
-        "held": s.held,
-        "fallbacks": s.fallbacks,
-        "invalid_state": s.invalid,
-        "relaxed": s.relaxed,
-        "uncertified": s.uncertified,
-        "uncertified_reasons": s.uncertified_reasons,
-        "unfiltered": s.unfiltered,
-        "interventions": s.interventions,
-        "deadline_overruns": s.deadlines.deadline_overruns,
-        "hold_overruns": s.deadlines.hold_overruns,
-        "longest_period": s.deadlines.longest_period,
-        "longest_hold_excess": s.deadlines.longest_hold_excess,
-        "elapsed": s.elapsed,
-        "rate": s.rate(),
-        "loop_rate": s.rate_choice.map(RateChoice::rate),
-        "rate_from_bus": matches!(s.rate_choice, Some(RateChoice::Adapted(_))),
-        "bus_check": s.bus_timing.map(|t| serde_json::json!({
-            "cycles": t.cycles,
-            "retried": t.retried,
-            "median": t.median,
-            "p90": t.slow,
-            "max": t.max,
-            "compute": t.compute,
-            "rate_limit": t.rate_limit(),
-        })),
-        "latency_timer_ms": latency_timer_ms,
-        "min_barrier": lowest(&s.min_barrier),
-        "lowest_by_kind": s
+    let summary = HardwareSummary {
+        controller: if settings.filter.value {
+            "filter"
+        } else {
+            "pd"
+        }
+        .to_string(),
+        robot: settings.robot.name.clone(),
+        hardware: true,
+        set_point: (!set_point.is_empty()).then(|| set_point.to_vec()),
+        verdict,
+        stopped: s.stop.to_string(),
+        ticks: s.ticks,
+        commands: s.commands,
+        held: s.held,
+        fallbacks: s.fallbacks,
+        invalid_state: s.invalid,
+        relaxed: s.relaxed,
+        uncertified: s.uncertified,
+        uncertified_reasons: s.uncertified_reasons,
+        unfiltered: s.unfiltered,
+        interventions: s.interventions,
+        deadline_overruns: s.deadlines.deadline_overruns,
+        hold_overruns: s.deadlines.hold_overruns,
+        longest_period: s.deadlines.longest_period,
+        longest_hold_excess: s.deadlines.longest_hold_excess,
+        elapsed: s.elapsed,
+        rate: s.rate(),
+        loop_rate: s.rate_choice.map(RateChoice::rate),
+        rate_from_bus: matches!(s.rate_choice, Some(RateChoice::Adapted(_))),
+        bus_check: s.bus_timing.map(|t| BusCheck {
+            cycles: t.cycles,
+            retried: t.retried,
+            median: t.median,
+            p90: t.slow,
+            max: t.max,
+            compute: t.compute,
+            rate_limit: t.rate_limit(),
+        }),
+        latency_timer_ms,
+        min_barrier: lowest(&s.min_barrier),
+        lowest_by_kind: s
             .lowest_by_kind
             .iter()
             .map(|(group, b)| (group.key().to_string(), lowest(b)))
-            .collect::<serde_json::Map<_, _>>(),
-        "clamps": { "low": s.clamps.low, "high": s.clamps.high },
-        "bus": {
-            "transactions": s.bus.transactions,
-            "replies": s.bus.replies,
-            "timeouts": s.bus.timeouts,
-            "crc_errors": s.bus.crc_errors,
-            "decode_errors": s.bus.decode_errors,
-            "wrong_id": s.bus.wrong_id,
-            "retries": s.bus.retries,
+            .collect(),
+        clamps: Clamps {
+            low: s.clamps.low.into(),
+            high: s.clamps.high.into(),
         },
-        "torque_off": s.torque_off.iter().map(|(id, ok)| serde_json::json!({"id": id, "confirmed": ok})).collect::<Vec<_>>(),
-        "experiment": s.experiment.as_ref().map(experiment_json),
-        "settings": settings,
-    });
-    let path = dir.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
-    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(path)
+        bus: summary_file::Bus {
+            transactions: s.bus.transactions,
+            replies: s.bus.replies,
+            timeouts: s.bus.timeouts,
+            crc_errors: s.bus.crc_errors,
+            decode_errors: s.bus.decode_errors,
+            wrong_id: s.bus.wrong_id,
+            retries: s.bus.retries,
+        },
+        torque_off: s
+            .torque_off
+            .iter()
+            .map(|&(id, confirmed)| TorqueOff { id, confirmed })
+            .collect(),
+        experiment: s.experiment.as_ref().map(experiment_summary),
+        settings: serde_json::to_value(settings).unwrap_or_default(),
+    };
+    summary.write(dir)
 }
 
-/// An experiment in `summary.json`: `kind`, its settings (`duration`, the dynamic length
-/// or the static cap, `null` for none, in s; static: `step_time`, `settle_time`, `ramp`,
-/// `quiet_window`, `rest_window` in s, `rest_threshold` in m; dynamic: `fade` in s,
-/// `band` and `resolution` in Hz, `lines_per_servo`, `operating_points` per module in N),
-/// `base_tension` and `amplitude` per module in N, and the counts: `steps` planned,
-/// `steps_run`, `steps_at_rest`, `steps_without_rest`, `rest_rows`, `complete`.
-fn experiment_json(e: &ExperimentReport) -> serde_json::Value {
+/// The experiment of a run as `summary.json` holds it ([`ExperimentSummary`]).
+fn experiment_summary(e: &ExperimentReport) -> ExperimentSummary {
     let s = &e.settings;
     let finite = |v: f64| v.is_finite().then_some(v);
-    let mut json = serde_json::json!({
-        "kind": s.kind.name(),
-        "duration": s.duration,
-        "base_tension": e.base_tension,
-        "amplitude": e.amplitude,
-        "steps": e.steps,
-        "steps_run": e.steps_run,
-        "steps_at_rest": e.steps_at_rest,
-        "steps_without_rest": e.steps_without_rest,
-        "rest_rows": e.rest_rows,
-        "complete": e.complete,
-        "uncertainty": s.uncertainty,
-        "stop_distance": s.stop_distance,
-        "growth_distance": s.growth_distance,
-        "growth": s.growth,
-        "start_scale": e.start_scale,
-        "levels": e.levels.iter().map(|l| serde_json::json!({
-            "scale": l.scale,
-            "lowest": finite(l.lowest),
-            "next": l.next,
-            "predicted": finite(l.predicted),
-        })).collect::<Vec<_>>(),
-        "stopped_by_guard": e.stopped.is_some(),
-    });
-    let more = match s.kind {
-        ExperimentKind::Static => serde_json::json!({
-            "step_time": s.step_time,
-            "settle_time": s.settle_time,
-            "ramp": s.ramp,
-            "quiet_window": s.quiet_window,
-            "rest_window": s.rest_window,
-            "rest_threshold": s.rest_threshold,
-        }),
-        ExperimentKind::Dynamic => serde_json::json!({
-            "fade": s.fade,
-            "band": e.band,
-            "resolution": s.resolution,
-            "lines_per_servo": e.lines_per_servo,
-            "operating_points": e.operating_points,
-        }),
-    };
-    if let (Some(json), serde_json::Value::Object(more)) = (json.as_object_mut(), more) {
-        json.extend(more);
+    ExperimentSummary {
+        duration: s.duration,
+        base_tension: e.base_tension.clone(),
+        amplitude: e.amplitude.clone(),
+        steps: e.steps,
+        steps_run: e.steps_run,
+        steps_at_rest: e.steps_at_rest,
+        steps_without_rest: e.steps_without_rest,
+        rest_rows: e.rest_rows,
+        complete: e.complete,
+        uncertainty: s.uncertainty,
+        stop_distance: s.stop_distance,
+        growth_distance: s.growth_distance,
+        growth: s.growth,
+        start_scale: e.start_scale,
+        levels: e
+            .levels
+            .iter()
+            .map(|l| LevelSummary {
+                scale: l.scale,
+                lowest: finite(l.lowest),
+                next: l.next,
+                predicted: finite(l.predicted),
+            })
+            .collect(),
+        stopped_by_guard: e.stopped.is_some(),
+        synthetic: false,
+        design: match s.kind {
+            ExperimentKind::Static => ExperimentDesign::Static {
+                step_time: Some(s.step_time),
+                settle_time: Some(s.settle_time),
+                ramp: Some(s.ramp),
+                quiet_window: Some(s.quiet_window),
+                rest_window: Some(s.rest_window),
+                rest_threshold: Some(s.rest_threshold),
+            },
+            ExperimentKind::Dynamic => ExperimentDesign::Dynamic {
+                fade: Some(s.fade),
+                band: Some(e.band),
+                resolution: Some(s.resolution),
+                lines_per_servo: Some(e.lines_per_servo.clone()),
+                operating_points: Some(e.operating_points.clone()),
+            },
+        },
     }
-    json
 }
 
 fn report(s: &RunSummary, limits: &VerdictLimits, console: &mut Console) {

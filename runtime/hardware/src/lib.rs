@@ -12,7 +12,7 @@
 //! - [`run_loop`]: `softcbf run`, the fixed-rate control loop; [`run_settings`] what it
 //!   does, [`run_outcome`] how it ended and its verdict; [`log`] its rows, CSV and figures;
 //!   [`log_description`] the hardware description a log was taken with (`hardware.json`);
-//!   [`status_line`] the live line on the terminal.
+//!   [`status_line`] the live line on the terminal; [`summary_file`] its `summary.json`.
 //! - [`experiment`]: the identification experiments of `softcbf run --experiment` (static
 //!   tension sets held to rest, multisines), whose tensions pass through the filter;
 //!   [`next_step`]: what to run after one (both logs named for `softcbf identify`).
@@ -54,3 +54,4 @@ pub mod run_outcome;
 pub mod run_settings;
 pub mod servo_io;
 pub mod status_line;
+pub mod summary_file;

@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use super::experiment::ExperimentKind;
+use super::summary_file::{FILE_NAME, HardwareSummary};
 
 /// The `next:` line after an experiment of kind `kind` logged into `out`, of the robot
 /// `robot_name` read from `robot_file`, on the bus `port`.
@@ -81,19 +82,12 @@ fn sibling_log(out: &Path, robot_name: &str, kind: &str) -> Option<PathBuf> {
         if !dir.is_dir() || same(&dir, out) {
             continue;
         }
-        let summary = dir.join("summary.json");
-        let Ok(text) = std::fs::read_to_string(&summary) else {
+        let summary = dir.join(FILE_NAME);
+        // A directory of something else (a simulation's, an unreadable file) is skipped.
+        let Ok(Some(read)) = HardwareSummary::read(&dir) else {
             continue;
         };
-        let Ok(value) = serde_json::from_str::<serde_json::Value>(&text) else {
-            continue;
-        };
-        let matches = value.get("robot").and_then(|v| v.as_str()) == Some(robot_name)
-            && value
-                .get("experiment")
-                .and_then(|e| e.get("kind"))
-                .and_then(|k| k.as_str())
-                == Some(kind);
+        let matches = read.robot == robot_name && read.experiment_kind() == Some(kind);
         if !matches {
             continue;
         }
@@ -117,12 +111,28 @@ mod tests {
     use super::*;
 
     fn write_summary(dir: &Path, robot: &str, kind: &str) {
+        use crate::summary_file::{ExperimentDesign, ExperimentSummary};
         std::fs::create_dir_all(dir).unwrap();
-        std::fs::write(
-            dir.join("summary.json"),
-            format!("{{\"robot\": \"{robot}\", \"experiment\": {{\"kind\": \"{kind}\"}}}}"),
-        )
-        .unwrap();
+        let design = match kind {
+            "static" => ExperimentDesign::default(),
+            _ => ExperimentDesign::Dynamic {
+                fade: None,
+                band: None,
+                resolution: None,
+                lines_per_servo: None,
+                operating_points: None,
+            },
+        };
+        let summary = HardwareSummary {
+            robot: robot.to_string(),
+            hardware: true,
+            experiment: Some(ExperimentSummary {
+                design,
+                ..ExperimentSummary::default()
+            }),
+            ..HardwareSummary::default()
+        };
+        summary.write(dir).unwrap();
     }
 
     /// The line after the dynamic experiment names both logs: the static one beside it

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use crate::hardware::log::{Extra, current_columns};
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::run_loop::command_wire_time;
+use crate::hardware::summary_file::{self, HardwareSummary};
 use crate::hardware_description::Hardware;
 use crate::mcap_log::{is_mcap, read_mcap};
 use crate::record::{TIME, as_strs, coordinate_names};
@@ -211,38 +212,28 @@ fn read_summary(
     dir: &Path,
     expected: &Expected<'_>,
 ) -> Result<Option<ExperimentKind>, IdentifyError> {
-    let path = dir.join("summary.json");
-    let text = match std::fs::read_to_string(&path) {
-        Ok(text) => text,
-        Err(error) if error.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(error) => {
-            return Err(IdentifyError::Io {
-                file: path,
-                message: error.to_string(),
-            });
-        }
-    };
-    let value: serde_json::Value =
-        serde_json::from_str(&text).map_err(|error| IdentifyError::Io {
-            file: path.clone(),
-            message: format!("line {}: not valid JSON: {error}", error.line()),
-        })?;
-    summary_kind(&value, &path, expected)
+    let path = dir.join(summary_file::FILE_NAME);
+    let summary = HardwareSummary::read(dir).map_err(|error| IdentifyError::Io {
+        file: path.clone(),
+        message: error.to_string(),
+    })?;
+    match summary {
+        Some(summary) => summary_kind(&summary, &path, expected),
+        None => Ok(None),
+    }
 }
 
-/// The experiment of a run's summary `value` (read from `path`), after checking its
-/// robot's name.
+/// The experiment of a run's `summary` (read from `path`), after checking its robot's
+/// name.
 fn summary_kind(
-    value: &serde_json::Value,
+    summary: &HardwareSummary,
     path: &Path,
     expected: &Expected<'_>,
 ) -> Result<Option<ExperimentKind>, IdentifyError> {
-    let path = path.to_path_buf();
-    if let Some(name) = value.get("robot").and_then(|v| v.as_str())
-        && name != expected.name
-    {
+    let name = &summary.robot;
+    if !name.is_empty() && name != expected.name {
         return Err(IdentifyError::DifferentRobot {
-            file: path,
+            file: path.to_path_buf(),
             what: format!(
                 "the run was of robot `{name}`, {} describes `{}`",
                 expected.file.display(),
@@ -250,11 +241,7 @@ fn summary_kind(
             ),
         });
     }
-    let kind = value
-        .get("experiment")
-        .and_then(|e| e.get("kind"))
-        .and_then(|k| k.as_str());
-    Ok(match kind {
+    Ok(match summary.experiment_kind() {
         Some("static") => Some(ExperimentKind::Static),
         Some("dynamic") => Some(ExperimentKind::Dynamic),
         _ => None,
@@ -729,7 +716,11 @@ pub fn read_mcap_log(file: &Path, expected: &Expected<'_>) -> Result<Log, Identi
     };
     let baud = check_description(&description, file, expected)?;
     let kind = match &read.summary {
-        Some(summary) => summary_kind(summary, file, expected)?,
+        Some(summary) => {
+            let summary: HardwareSummary = serde_json::from_value(summary.clone())
+                .map_err(|e| io(format!("metadata `summary`: {e}")))?;
+            summary_kind(&summary, file, expected)?
+        }
         None => None,
     };
     let Some((_, record)) = read.runs.first() else {

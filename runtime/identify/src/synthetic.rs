@@ -21,6 +21,7 @@ use crate::hardware::log::{Extra, extra_columns};
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::mapping::TendonMap;
 use crate::hardware::run_loop::command_wire_time;
+use crate::hardware::summary_file::{Clamps, ExperimentDesign, ExperimentSummary, HardwareSummary};
 use crate::integrator::Tolerances;
 use crate::model::Model;
 use crate::plant::Plant;
@@ -330,26 +331,35 @@ pub fn write_log(
         plant_map.tau_from_tensions(&applied, plant.tau_mut());
     }
     writer.finish().map_err(|e| e.to_string())?;
-    let experiment = run.kind.map(|kind| {
-        serde_json::json!({
-            "kind": match kind {
-                ExperimentKind::Static => "static",
-                ExperimentKind::Dynamic => "dynamic",
+    // The summary a run of the robot would write, without what a synthetic run has not
+    // got (a bus, deadlines, a verdict), which reads back as the defaults.
+    let experiment = run.kind.map(|kind| ExperimentSummary {
+        synthetic: true,
+        design: match kind {
+            ExperimentKind::Static => ExperimentDesign::default(),
+            ExperimentKind::Dynamic => ExperimentDesign::Dynamic {
+                fade: None,
+                band: None,
+                resolution: None,
+                lines_per_servo: None,
+                operating_points: None,
             },
-            "synthetic": true,
-        })
+        },
+        ..ExperimentSummary::default()
     });
-    let json = serde_json::json!({
-        "controller": "filter",
-        "robot": file.robot.name,
-        "hardware": true,
-        "loop_rate": run.rate,
-        "experiment": experiment,
-        "clamps": { "low": summary.clamps.0, "high": summary.clamps.1 },
-    });
-    let summary_path = dir.join("summary.json");
-    let text = serde_json::to_string_pretty(&json).unwrap_or_default() + "\n";
-    std::fs::write(&summary_path, text).map_err(|e| format!("{}: {e}", summary_path.display()))?;
+    let file_summary = HardwareSummary {
+        controller: "filter".to_string(),
+        robot: file.robot.name.clone(),
+        hardware: true,
+        loop_rate: Some(run.rate),
+        experiment,
+        clamps: Clamps {
+            low: u64::from(summary.clamps.0),
+            high: u64::from(summary.clamps.1),
+        },
+        ..HardwareSummary::default()
+    };
+    file_summary.write(dir)?;
     Ok(summary)
 }
 

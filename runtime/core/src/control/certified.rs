@@ -81,7 +81,8 @@ impl Uncertified {
 }
 
 /// How many ticks were not proven over their hold, per reason ([`Uncertified`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct UncertifiedCounts {
     pub tube: usize,
     pub domain: usize,
