@@ -503,6 +503,7 @@ fn three_square_cases_the_falsifier_found_keep_every_barrier() {
         "three-square-alternate",
         "three-square-end-row",
         "three-square-between-samples",
+        "three-square-check-passes",
     ] {
         let file = ScenarioFile::load(&repo(&format!("tests/data/{case}.toml"))).expect("reads");
         let scenario = file
