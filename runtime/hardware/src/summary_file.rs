@@ -354,6 +354,8 @@ mod tests {
                     ..Default::default()
                 },
                 longest_period: 0.0437,
+                // Not finite: written `null`, read back as NaN.
+                longest_hold_excess: f64::INFINITY,
                 min_barrier: Lowest {
                     value: Some(7.5e-3),
                     label: "module 1 elongation min".into(),
@@ -381,9 +383,9 @@ mod tests {
             summary.write(&dir).unwrap();
             let mut read = HardwareSummary::read(&dir).unwrap().unwrap();
             let text = std::fs::read_to_string(dir.join(FILE_NAME)).unwrap();
-            // Defaults that are not finite: NaN both ways, compared apart.
-            assert!(read.elapsed.is_nan() || read.elapsed == 0.0, "{text}");
-            read.elapsed = summary.elapsed;
+            assert!(text.contains("\"longest_hold_excess\": null"), "{text}");
+            assert!(read.longest_hold_excess.is_nan(), "{text}");
+            read.longest_hold_excess = summary.longest_hold_excess;
             assert_eq!(read, summary, "{text}");
             let kind = summary.experiment_kind().unwrap();
             assert!(text.contains(&format!("\"kind\": \"{kind}\"")), "{text}");
