@@ -555,6 +555,7 @@ pub fn paper_module(com_offset: f64) -> Module {
         axial_stiffness: 10.0,
         bending_damping: 5.0,
         axial_damping: 5.0,
+        uncertainty: Default::default(),
     }
 }
 

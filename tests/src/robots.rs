@@ -30,11 +30,11 @@ pub fn hardware_example_model() -> &'static Model {
 }
 
 /// Factors for every module of `robot`, each drawn uniformly and independently inside the
-/// box its `[uncertainty]` declares: `κθ`, `κL` factors in `1 ± stiffness`, `βθ`, `βL` in
+/// box its `[uncertainty]` declares (each module's own box, `Robot::module_box`): `κθ`, `κL`
+/// factors in `1 ± stiffness`, `βθ`, `βL` in
 /// `1 ± damping`, the mass (and inertia) factor in `1 ± mass`. With nothing declared every
 /// factor is 1 (and no number is drawn).
 pub fn draw_factors(robot: &Robot, rng: &mut TestRng) -> Vec<ModuleFactors> {
-    let u = robot.uncertainty;
     let mut factor = |fraction: f64| {
         if fraction > 0.0 {
             rng.random_range(1.0 - fraction..=1.0 + fraction)
@@ -42,13 +42,15 @@ pub fn draw_factors(robot: &Robot, rng: &mut TestRng) -> Vec<ModuleFactors> {
             1.0
         }
     };
-    robot
-        .modules
-        .iter()
-        .map(|_| ModuleFactors {
-            stiffness: [factor(u.stiffness), factor(u.stiffness)],
-            damping: [factor(u.damping), factor(u.damping)],
-            mass: factor(u.mass),
+    // Each module inside its own box (the robot-wide one unless it gives its own).
+    (0..robot.modules.len())
+        .map(|i| {
+            let b = robot.module_box(i);
+            ModuleFactors {
+                stiffness: [factor(b.stiffness[0]), factor(b.stiffness[1])],
+                damping: [factor(b.damping[0]), factor(b.damping[1])],
+                mass: factor(b.mass),
+            }
         })
         .collect()
 }

@@ -179,6 +179,11 @@ module_fields! {
     /// `βL`: axial damping \[N·s/m\].
     axial_damping: f64 = 5.0,
         "axial_damping": f64 => number(&limits::AXIAL_DAMPING);
+    /// This module's own fractions of uncertainty (`uncertainty = { bending_stiffness = 0.02,
+    /// … }`), over the robot's `[uncertainty]`; see [`crate::robot::Robot::module_box`].
+    uncertainty: crate::uncertainty_box::ModuleUncertainty = Default::default(),
+        "uncertainty": crate::uncertainty_box::ModuleUncertaintyTable =>
+            Checker::module_uncertainty;
     /// `ε_j`: barrier margin of each corner \[m\] (same length as `corner_angles`; the
     /// file gives one number for all corners or one per corner).
     margins: Vec<f64> = vec![PAPER_MARGIN; corner_angles.len()],

@@ -25,7 +25,7 @@ pub use crate::module::{Module, polygon_inertia};
 use crate::module::{ModuleTable, Written};
 use crate::toml_file::Checker;
 pub use crate::toml_file::FileError as RobotError;
-use crate::uncertainty_box::{Uncertainty, UncertaintyTable};
+use crate::uncertainty_box::{ModuleBox, ModuleUncertainty, Uncertainty, UncertaintyTable};
 
 /// How tendons are routed (§6 of the model notes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
@@ -62,7 +62,10 @@ pub struct Robot {
     pub limits: Vec<Limits>,
     /// The obstacles (`[[obstacle]]`), in file order.
     pub obstacles: Vec<Obstacle>,
-    /// How far the numbers may be off (`[uncertainty]`; none declared by default).
+    /// How far the numbers may be off (`[uncertainty]`; none declared by default). Where a
+    /// module gives fractions of its own, each fraction here is the widest of any module's
+    /// (what a reader of one fraction per kind may take); [`Robot::module_box`] gives each
+    /// module's.
     pub uncertainty: Uncertainty,
     /// The robot's own set point `q̄` \[m\] (`set_point`, `3·modules` entries in the state
     /// domain; `None`: not given): what `softcbf simulate` drives it toward when neither
@@ -126,6 +129,26 @@ pub use crate::limits::MAX_MODULES;
 pub const PAPER_SIM_TOML: &str = include_str!("../../../robots/paper-sim.toml");
 
 impl Robot {
+    /// Module `i`'s box (0-based): its own `uncertainty = { … }` fractions, the robot's
+    /// `[uncertainty]` for the numbers it does not give. A module index out of range gets
+    /// the robot-wide box.
+    pub fn module_box(&self, i: usize) -> ModuleBox {
+        match self.modules.get(i) {
+            Some(module) => module.uncertainty.over(&self.uncertainty),
+            None => ModuleBox::of(&self.uncertainty),
+        }
+    }
+
+    /// Whether every module's factors (`factors[i]` module `i`'s, one per module) lie in
+    /// its box ([`Robot::module_box`]).
+    pub fn admits(&self, factors: &[crate::uncertainty_box::ModuleFactors]) -> bool {
+        factors.len() == self.modules.len()
+            && factors
+                .iter()
+                .enumerate()
+                .all(|(i, f)| self.module_box(i).admits(f))
+    }
+
     /// The structure that code generation depends on.
     pub fn structure(&self) -> Structure {
         Structure {
@@ -340,7 +363,8 @@ impl Checker<'_> {
         let module_limits: Vec<_> = tables.iter().map(|t| t.limits.as_ref()).collect();
         let limits = self.limits(file.limits.as_ref(), &module_limits, &modules)?;
         let obstacles = self.obstacles(file.obstacle.as_deref().unwrap_or_default(), &modules)?;
-        let uncertainty = self.uncertainty(file.uncertainty.as_ref())?;
+        let mut uncertainty = self.uncertainty(file.uncertainty.as_ref())?;
+        resolve_module_boxes(&mut uncertainty, &mut modules);
         let nq = 3 * modules.len();
         let mut gains = FileGains::default();
         if let Some(table) = &file.gains {
@@ -390,6 +414,29 @@ impl Checker<'_> {
                 span: table.span(),
             }),
         })
+    }
+}
+
+/// Where a module gives fractions of its own (`uncertainty = { … }`): every module's box
+/// written out in full (its own fractions over the table's), and the robot-wide
+/// `uncertainty` made the widest of them (the force stays the table's), so that what reads
+/// one fraction per kind holds for every module and a fraction no module keeps counts
+/// for nothing.
+fn resolve_module_boxes(uncertainty: &mut Uncertainty, modules: &mut [Module]) {
+    if modules.iter().all(|m| m.uncertainty.is_empty()) {
+        return;
+    }
+    let table = *uncertainty;
+    (uncertainty.stiffness, uncertainty.damping, uncertainty.mass) = (0.0, 0.0, 0.0);
+    for module in modules.iter_mut() {
+        let bx = module.uncertainty.over(&table);
+        module.uncertainty = ModuleUncertainty::from_box(&bx);
+        uncertainty.stiffness = uncertainty
+            .stiffness
+            .max(bx.stiffness[0])
+            .max(bx.stiffness[1]);
+        uncertainty.damping = uncertainty.damping.max(bx.damping[0]).max(bx.damping[1]);
+        uncertainty.mass = uncertainty.mass.max(bx.mass);
     }
 }
 

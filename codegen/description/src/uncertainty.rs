@@ -10,7 +10,9 @@
 use crate::limits::{self, Limit};
 use crate::module::Module;
 use crate::robot::Robot;
-pub use crate::uncertainty_box::{ModuleFactors, RELATIVE_TOLERANCE, Uncertainty};
+pub use crate::uncertainty_box::{
+    ModuleBox, ModuleFactors, ModuleUncertainty, RELATIVE_TOLERANCE, Uncertainty,
+};
 
 // ---------------------------------------------------------------------------------------
 // Plant robots inside the box.
@@ -151,12 +153,12 @@ pub fn contains(nominal: &Robot, plant: &Robot) -> bool {
 /// per module the same rest length, tendon radius, tendon angles and centre-of-mass
 /// offset (bit for bit); and `κθ`, `κL` within `1 ± stiffness`, `βθ`, `βL` within
 /// `1 ± damping`, the mass and each principal moment of inertia within `1 ± mass` times
-/// the nominal number (each on its own: mass and inertia scaled by factors in the box keep
+/// the nominal number, with the fractions of the module's own box
+/// ([`Robot::module_box`]) (each on its own: mass and inertia scaled by factors in the box keep
 /// the mass matrix between `(1 − mass)` and `(1 + mass)` times the nominal one). Numbers
 /// only the controller reads (corner geometry, margins, limits, obstacles, gains) are not
 /// compared, and the unmodelled force is no number of the plant.
 pub fn outside(nominal: &Robot, plant: &Robot) -> Option<String> {
-    let u = &nominal.uncertainty;
     if plant.modules.len() != nominal.modules.len() {
         return Some(format!(
             "the plant has {} modules, the nominal robot {}",
@@ -190,12 +192,16 @@ pub fn outside(nominal: &Robot, plant: &Robot) -> Option<String> {
                  uncertainty does not cover it"
             ));
         }
+        // This module's own box (the robot-wide one unless it gives its own).
+        let bx = nominal.module_box(i);
         for ((x, x0), (number, bound, limit)) in values(p).into_iter().zip(values(n)).zip(UNCERTAIN)
         {
-            let fraction = match bound {
-                Bound::Stiffness => u.stiffness,
-                Bound::Damping => u.damping,
-                Bound::Mass => u.mass,
+            let fraction = match (bound, number) {
+                (Bound::Stiffness, "bending_stiffness") => bx.stiffness[0],
+                (Bound::Stiffness, _) => bx.stiffness[1],
+                (Bound::Damping, "bending_damping") => bx.damping[0],
+                (Bound::Damping, _) => bx.damping[1],
+                (Bound::Mass, _) => bx.mass,
             };
             // A NaN is outside too: the comparison is false.
             let inside = (x - x0).abs() <= (fraction + RELATIVE_TOLERANCE) * x0.abs();
@@ -284,6 +290,114 @@ mod tests {
         assert!(!Robot::paper_sim().uncertainty.is_declared());
     }
 
+    /// A module's own `uncertainty = { … }`: its numbers over the table's, the other
+    /// modules the table's, and the robot-wide fractions the widest any module keeps.
+    #[test]
+    fn a_module_gives_its_own_box_over_the_table() {
+        let robot = parse(
+            "[uncertainty]\nstiffness = 0.2\ndamping = 0.3\nmass = 0.1\nforce = 0.05\n\
+             [[module]]\nuncertainty = { bending_stiffness = 0.02, axial_damping = 0.5 }\n\
+             [[module]]\n[module.uncertainty]\nbending_stiffness = 0.01\naxial_stiffness = 0.01\n\
+             bending_damping = 0.01\naxial_damping = 0.01\nmass = 0.0\n[[module]]\n",
+        )
+        .unwrap();
+        let boxes: Vec<ModuleBox> = (0..3).map(|i| robot.module_box(i)).collect();
+        assert_eq!(
+            boxes[0],
+            ModuleBox {
+                stiffness: [0.02, 0.2],
+                damping: [0.3, 0.5],
+                mass: 0.1
+            }
+        );
+        assert_eq!(
+            boxes[1],
+            ModuleBox {
+                stiffness: [0.01, 0.01],
+                damping: [0.01, 0.01],
+                mass: 0.0
+            }
+        );
+        assert_eq!(
+            boxes[2],
+            ModuleBox {
+                stiffness: [0.2, 0.2],
+                damping: [0.3, 0.3],
+                mass: 0.1
+            }
+        );
+        // The widest any module keeps: damping 0.5 from module 1's axial number.
+        assert_eq!(
+            robot.uncertainty,
+            Uncertainty {
+                stiffness: 0.2,
+                damping: 0.5,
+                mass: 0.1,
+                force: 0.05
+            }
+        );
+        // A fraction of the table no module keeps counts for nothing.
+        let narrowed = parse(
+            "[uncertainty]\nstiffness = 0.2\n[[module]]\n\
+             uncertainty = { bending_stiffness = 0.0, axial_stiffness = 0.0 }\n",
+        )
+        .unwrap();
+        assert!(!narrowed.uncertainty.is_declared());
+        // `[defaults]` gives it to every module that gives none.
+        let defaults = parse("modules = 2\n[defaults]\nuncertainty = { mass = 0.3 }\n").unwrap();
+        assert_eq!(defaults.module_box(1).mass, 0.3);
+        assert_eq!(defaults.uncertainty.mass, 0.3);
+        // Factors are judged against each module's own box.
+        let inside = ModuleFactors {
+            stiffness: [1.02, 0.81],
+            damping: [0.7, 1.5],
+            mass: 0.9,
+        };
+        assert!(boxes[0].admits(&inside));
+        assert!(!boxes[1].admits(&inside));
+        let too_stiff = ModuleFactors {
+            stiffness: [1.03, 1.0],
+            ..ModuleFactors::NOMINAL
+        };
+        assert!(!boxes[0].admits(&too_stiff));
+        assert!(robot.admits(&[inside, ModuleFactors::NOMINAL, ModuleFactors::NOMINAL]));
+        assert!(!robot.admits(&[inside, inside, ModuleFactors::NOMINAL]));
+        assert!(!robot.admits(&[inside]));
+        // The plant test names the module and the number outside its own box.
+        let plant = scaled(
+            &robot,
+            &[too_stiff, ModuleFactors::NOMINAL, ModuleFactors::NOMINAL],
+        )
+        .unwrap();
+        let reason = outside(&robot, &plant).expect("outside module 1's box");
+        assert!(
+            reason.starts_with("module 1: bending_stiffness"),
+            "{reason}"
+        );
+        let plant = scaled(
+            &robot,
+            &[ModuleFactors::NOMINAL, ModuleFactors::NOMINAL, too_stiff],
+        )
+        .unwrap();
+        assert_eq!(outside(&robot, &plant), None);
+    }
+
+    #[test]
+    fn a_modules_bad_fraction_names_its_line_and_field() {
+        assert_invalid(
+            parse("[[module]]\n[[module]]\nuncertainty = { bending_damping = 1.5 }\n"),
+            3,
+            "module[2].uncertainty.bending_damping",
+            "≤ 0.9, got 1.5 (a fraction: 0.2 is ±20 %)",
+        );
+        assert_invalid(
+            parse("[defaults]\nuncertainty = { mass = -0.1 }\n[[module]]\n"),
+            2,
+            "defaults.uncertainty.mass",
+            "got -0.1",
+        );
+    }
+
     #[test]
     fn bad_values_name_file_line_and_field() {
         assert_invalid(
@@ -359,16 +473,18 @@ mod tests {
             3,
             "field `uncertainty.stiffness`: invalid type: string \"20 %\", expected a number",
         );
-        // Declared for the whole robot only: no per-module or `[defaults]` form.
+        // A module's own box names each number (the robot-wide kinds are the table's).
         assert_syntax(
-            "[[module]]\n[module.uncertainty]\nmass = 0.2\n",
-            2,
-            "field `module[1].uncertainty`: unknown field `uncertainty`",
+            "[[module]]\n[module.uncertainty]\nmass = 0.1\nstiffness = 0.2\n",
+            4,
+            "field `module[1].uncertainty.stiffness`: unknown field `stiffness`, expected one \
+             of `bending_stiffness`, `axial_stiffness`, `bending_damping`, `axial_damping`, \
+             `mass`",
         );
         assert_syntax(
-            "[defaults.uncertainty]\nmass = 0.2\n[[module]]\n",
-            1,
-            "field `defaults.uncertainty`: unknown field `uncertainty`",
+            "[defaults]\nuncertainty = { force = 0.2 }\n[[module]]\n",
+            2,
+            "unknown field `force`",
         );
     }
 

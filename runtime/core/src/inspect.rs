@@ -73,6 +73,12 @@ pub fn model_report(model: &Model, q: &[f64], qd: &[f64]) -> Result<Value, Dynam
             "damping": uncertainty.damping,
             "mass": uncertainty.mass,
             "force": uncertainty.force,
+            // Each module's box (its own `uncertainty = { … }` over the table):
+            // [bending, axial] stiffness and damping, and mass.
+            "modules": (0..n).map(|i| {
+                let b = model.robot.module_box(i);
+                json!({"stiffness": b.stiffness, "damping": b.damping, "mass": b.mass})
+            }).collect::<Vec<_>>(),
         },
         "generated_model": generated.name(),
         "n": n,

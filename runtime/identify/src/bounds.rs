@@ -15,7 +15,7 @@
 //! is said in a comment.
 
 use softcbf_description::limits::UNCERTAINTY_FRACTION;
-use softcbf_description::uncertainty::Uncertainty;
+use softcbf_description::uncertainty::{ModuleUncertainty, Uncertainty};
 
 use super::{Identification, Parameter, SLOW_PERIOD, Status};
 
@@ -51,6 +51,10 @@ pub struct Bounds {
     pub force: Bound,
     /// The actuator gains' bound (not a field of the table): its comment.
     pub gains: String,
+    /// Each module's own bounds (its `uncertainty = { … }`): the stiffness and damping it
+    /// identified, each from its own standard error as the table's from the least certain;
+    /// `None` where not identified (the table's bound holds there).
+    pub modules: Vec<ModuleUncertainty>,
 }
 
 impl Bounds {
@@ -228,12 +232,34 @@ pub fn bounds(id: &Identification, written: &dyn Fn(usize) -> f64, input: &Uncer
             gain.1
         )
     };
+    let modules = (0..id.modules())
+        .map(|i| {
+            let own = |parameter: Parameter, extra: f64| {
+                let j = parameter.index(i);
+                (id.fit.status[j] == Status::Identified)
+                    .then(|| capped(relative(id, j, written(j)) + extra, String::new()).value)
+            };
+            let slow = if id.period > SLOW_PERIOD {
+                SLOW_DAMPING
+            } else {
+                0.0
+            };
+            ModuleUncertainty {
+                bending_stiffness: own(Parameter::BendingStiffness, 0.0),
+                axial_stiffness: own(Parameter::AxialStiffness, 0.0),
+                bending_damping: own(Parameter::BendingDamping, slow),
+                axial_damping: own(Parameter::AxialDamping, slow),
+                mass: None,
+            }
+        })
+        .collect();
     Bounds {
         stiffness,
         damping,
         mass,
         force,
         gains,
+        modules,
     }
 }
 

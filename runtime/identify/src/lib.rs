@@ -738,6 +738,20 @@ pub fn run(args: IdentifyArgs, console: &mut Console) -> Result<u8, String> {
         bounds.force.value,
         args.out.display()
     ));
+    // Each module's own box, the numbers it identified (the table's elsewhere).
+    let show = |x: Option<f64>| x.map_or("table".to_string(), |x| x.to_string());
+    for (i, own) in bounds.modules.iter().enumerate() {
+        console.say(&format!(
+            "module {} uncertainty written: κθ {}, κL {}, βθ {}, βL {} (its own {} standard \
+             errors)",
+            i + 1,
+            show(own.bending_stiffness),
+            show(own.axial_stiffness),
+            show(own.bending_damping),
+            show(own.axial_damping),
+            bounds::K_SIGMA
+        ));
+    }
     console.say(&format!("wrote {}", written.join(", ")));
     if let Some(error) = console.error() {
         eprintln!("error: {error}");

@@ -6,7 +6,8 @@
 use std::path::{Path, PathBuf};
 
 use softcbf_description::robot::Robot;
-use toml_edit::{Array, DocumentMut, Item, Table, Value};
+use softcbf_description::uncertainty::ModuleUncertainty;
+use toml_edit::{Array, DocumentMut, InlineTable, Item, Table, Value};
 
 use super::bounds::{Bounds, K_SIGMA, bounds};
 use super::{Identification, IdentifyError, PER_MODULE, Parameter, Status, hardware_of};
@@ -218,8 +219,13 @@ pub fn render(text: &str, robot: &Robot, id: &Identification) -> Result<String, 
         };
         set(table, "actuator_gain", value, &comment);
     }
-    write_uncertainty(&mut doc, &identified_bounds(robot, id), &origin)
-        .map_err(|message| invalid(message.into()))?;
+    let bounds = identified_bounds(robot, id);
+    write_uncertainty(&mut doc, &bounds, &origin).map_err(|message| invalid(message.into()))?;
+    for (i, own) in bounds.modules.iter().enumerate() {
+        let table = module_table(&mut doc, i, modules)
+            .ok_or_else(|| invalid(format!("has no [[module]] table {}", i + 1)))?;
+        write_module_uncertainty(table, own);
+    }
     Ok(doc.to_string())
 }
 
@@ -265,6 +271,37 @@ fn write_uncertainty(
     Ok(())
 }
 
+/// Writes a module's own bounds as its `uncertainty = { … }` (replacing one the input
+/// had), or removes the key where it identified none (the table's bounds hold there).
+fn write_module_uncertainty(table: &mut Table, own: &ModuleUncertainty) {
+    let numbers = [
+        ("bending_stiffness", own.bending_stiffness),
+        ("axial_stiffness", own.axial_stiffness),
+        ("bending_damping", own.bending_damping),
+        ("axial_damping", own.axial_damping),
+        ("mass", own.mass),
+    ];
+    let mut inline = InlineTable::new();
+    for (key, value) in numbers {
+        if let Some(value) = value {
+            inline.insert(key, Value::from(value));
+        }
+    }
+    if inline.is_empty() {
+        table.remove("uncertainty");
+        return;
+    }
+    set(
+        table,
+        "uncertainty",
+        Value::InlineTable(inline),
+        &format!(
+            "this module's own bounds: {K_SIGMA} standard errors of its identified numbers, \
+             rounded up ([uncertainty] holds for the rest)"
+        ),
+    );
+}
+
 /// Checks that `parsed` (the rendered file) is `robot` with exactly the numbers of `id` and
 /// its `[uncertainty]` table.
 fn check_rendered(parsed: &Robot, robot: &Robot, id: &Identification) -> Result<(), String> {
@@ -275,8 +312,22 @@ fn check_rendered(parsed: &Robot, robot: &Robot, id: &Identification) -> Result<
             parsed.uncertainty
         ));
     }
+    let bounds = identified_bounds(robot, id);
+    for (i, own) in bounds.modules.iter().enumerate() {
+        let expected = own.over(&uncertainty);
+        if parsed.module_box(i) != expected {
+            return Err(format!(
+                "module {}'s uncertainty reads back as {:?}, not {expected:?}",
+                i + 1,
+                parsed.module_box(i)
+            ));
+        }
+    }
     let mut restored = parsed.clone();
     restored.uncertainty = robot.uncertainty;
+    for (module, original) in restored.modules.iter_mut().zip(&robot.modules) {
+        module.uncertainty = original.uncertainty;
+    }
     for (i, module) in restored.modules.iter_mut().enumerate() {
         let fields = [
             (Parameter::BendingStiffness, &mut module.bending_stiffness),
@@ -675,6 +726,40 @@ mod tests {
         assert!(
             table.contains("none declared, as in the input file"),
             "{table}"
+        );
+        // Each module's own box: 3 standard errors over its own identified number (1.2
+        // times the file's), rounded up; where a number was not identified (module 2's βθ),
+        // the table's bound.
+        for (i, module) in robot.modules.iter().enumerate() {
+            let own = back.module_box(i);
+            let numbers = [
+                (own.stiffness[0], module.bending_stiffness),
+                (own.stiffness[1], module.axial_stiffness),
+                (own.damping[0], module.bending_damping),
+                (own.damping[1], module.axial_damping),
+            ];
+            for (k, (bound, file)) in numbers.into_iter().enumerate() {
+                if (i, k) == (1, 2) {
+                    assert_eq!(bound, back.uncertainty.damping);
+                    continue;
+                }
+                let expected = 3e-5 / (1.2 * file);
+                assert!(
+                    bound >= (1.0 - 1e-9) * expected && bound < 1.1 * expected,
+                    "module {} number {k}: {bound} against {expected}",
+                    i + 1
+                );
+            }
+            assert_eq!(own.mass, 0.0);
+        }
+        // The least certain module's bound is the table's.
+        let widest = (0..robot.modules.len())
+            .flat_map(|i| back.module_box(i).stiffness)
+            .fold(0.0, f64::max);
+        assert_eq!(widest, back.uncertainty.stiffness);
+        assert!(
+            rendered.contains("# this module's own bounds: 3 standard errors"),
+            "{rendered}"
         );
     }
 }

@@ -176,7 +176,8 @@ fn the_walk_through_finds_the_true_robot() {
     // runs beside the rest of this suite (its readings' noise part, 0.5 % idle and 1.9 %
     // loaded, growing with the landing times' jitter); damping is the least certain (3 σ of
     // the least certain βθ, 8 % to 21 % idle, 32 % loaded), so only an absurd width fails.
-    let declared = Robot::load(&identified).unwrap().uncertainty;
+    let identified_robot = Robot::load(&identified).unwrap();
+    let declared = identified_robot.uncertainty;
     println!(
         "identified [uncertainty]: stiffness {}, damping {}, mass {}, force {}",
         declared.stiffness, declared.damping, declared.mass, declared.force
@@ -185,16 +186,26 @@ fn the_walk_through_finds_the_true_robot() {
         declared.stiffness < 0.1 && declared.damping < 0.5,
         "{declared:?}"
     );
+    // Each module's own box (its `uncertainty = { … }`, from its own standard errors,
+    // within the table's) covers its true numbers.
     for (module, (t, f)) in truth.iter().zip(&found).enumerate() {
+        let own = identified_robot.module_box(module);
+        println!("module {} box: {own:?}", module + 1);
         for (k, bound) in [
-            declared.stiffness,
-            declared.stiffness,
-            declared.damping,
-            declared.damping,
+            own.stiffness[0],
+            own.stiffness[1],
+            own.damping[0],
+            own.damping[1],
         ]
         .into_iter()
         .enumerate()
         {
+            assert!(
+                bound <= [declared.stiffness, declared.damping][k / 2],
+                "module {}: {} bound {bound} wider than the table's",
+                module + 1,
+                names[k]
+            );
             assert!(
                 (t[k] / f[k] - 1.0).abs() <= bound,
                 "module {} {}: the true {} lies outside {} ± {bound}",

@@ -142,18 +142,21 @@ pub fn draw(model: &Model, spec: &VerifySpec, run: usize) -> Result<Draw, String
         });
     }
     let factors = if spec.parameter_errors {
-        let u = model.robot.uncertainty;
+        // Each module inside its own box (the robot-wide one unless it gives its own).
         (0..model.robot.modules.len())
-            .map(|_| ModuleFactors {
-                stiffness: [
-                    uniform(&mut draws, 1.0 - u.stiffness, 1.0 + u.stiffness),
-                    uniform(&mut draws, 1.0 - u.stiffness, 1.0 + u.stiffness),
-                ],
-                damping: [
-                    uniform(&mut draws, 1.0 - u.damping, 1.0 + u.damping),
-                    uniform(&mut draws, 1.0 - u.damping, 1.0 + u.damping),
-                ],
-                mass: uniform(&mut draws, 1.0 - u.mass, 1.0 + u.mass),
+            .map(|i| {
+                let b = model.robot.module_box(i);
+                ModuleFactors {
+                    stiffness: [
+                        uniform(&mut draws, 1.0 - b.stiffness[0], 1.0 + b.stiffness[0]),
+                        uniform(&mut draws, 1.0 - b.stiffness[1], 1.0 + b.stiffness[1]),
+                    ],
+                    damping: [
+                        uniform(&mut draws, 1.0 - b.damping[0], 1.0 + b.damping[0]),
+                        uniform(&mut draws, 1.0 - b.damping[1], 1.0 + b.damping[1]),
+                    ],
+                    mass: uniform(&mut draws, 1.0 - b.mass, 1.0 + b.mass),
+                }
             })
             .collect()
     } else {
@@ -171,4 +174,50 @@ pub fn draw(model: &Model, spec: &VerifySpec, run: usize) -> Result<Draw, String
         factors,
         noise_seed,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use softcbf_description::Robot;
+
+    use super::*;
+    use crate::scenario::ScenarioFile;
+    use crate::spec::VerifyOverrides;
+
+    /// With `parameter_errors`, each module's factors are drawn in its own box: module 1
+    /// narrowed to ±1 % in its file stays there, module 2 spreads over the table's ±20 %.
+    #[test]
+    fn plants_are_drawn_in_each_modules_own_box() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let file = ScenarioFile::load(&root.join("scenarios/falsify/uncertain-33hz.toml"))
+            .expect("the falsifier's scenario");
+        let path = root.join("robots/paper-sim-uncertain.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let first = text.find("[[module]]\n").unwrap() + "[[module]]\n".len();
+        let edited = format!(
+            "{}uncertainty = {{ bending_stiffness = 0.01, axial_stiffness = 0.01, \
+             bending_damping = 0.01, axial_damping = 0.01, mass = 0.01 }}\n{}",
+            &text[..first],
+            &text[first..]
+        );
+        let model = Model::new(Robot::parse(&edited, &path).unwrap()).unwrap();
+        let spec = VerifySpec::from_file(&file, &model, &VerifyOverrides::default(), &edited)
+            .expect("the spec");
+        assert!(spec.parameter_errors);
+        let mut spread = [0.0f64; 2];
+        for run in 0..100 {
+            let drawn = draw(&model, &spec, run).expect("a draw");
+            assert!(model.robot.admits(&drawn.factors), "run {run}");
+            for (module, f) in drawn.factors.iter().enumerate() {
+                let numbers = [f.stiffness[0], f.stiffness[1], f.damping[0], f.damping[1]];
+                for x in numbers.into_iter().chain([f.mass]) {
+                    spread[module] = spread[module].max((x - 1.0).abs());
+                }
+            }
+        }
+        assert!(spread[0] <= 0.01 + 1e-12, "module 1: {}", spread[0]);
+        assert!(spread[1] > 0.19, "module 2: {}", spread[1]);
+    }
 }

@@ -1367,6 +1367,11 @@ fn group_forcing(
     let join = |acc: &mut Interval, x: Interval| {
         *acc = if acc.is_valid() { acc.hull(x) } else { x };
     };
+    // Each coordinate's stiffness and damping fractions (its module's box).
+    let mut boxes = [(0.0, 0.0); 64];
+    for (i, slot) in boxes.iter_mut().enumerate().take(nq) {
+        *slot = model.robot.module_box(i / 3).coordinate(i);
+    }
     let count = if ws.coarse {
         ws.coarse_groups.len()
     } else {
@@ -1474,6 +1479,7 @@ fn group_forcing(
         for c in group.clone() {
             let h = ws.cell(c);
             for i in 0..nq {
+                let (sigma_k, sigma_d) = boxes[i];
                 let residual = ws.residual[c * nq + i]
                     .abs()
                     .max(ws.residual[(c + 1) * nq + i].abs());
@@ -1485,8 +1491,8 @@ fn group_forcing(
                     + jerk_share
                     + ws.g_jet[i].slope.mag()
                     + u.mass * ws.enclosure.per_body[i]
-                    + u.stiffness * model.stiffness[i] * base[i][0].mag()
-                    + u.damping * model.damping[i] * base[i][1].mag()
+                    + sigma_k * model.stiffness[i] * base[i][0].mag()
+                    + sigma_d * model.damping[i] * base[i][1].mag()
                     + u.force;
                 ws.force[c * nq + i] = value * ROUNDING;
             }

@@ -576,12 +576,17 @@ impl RobustMargin {
             }
         };
         for i in 0..model.n_modules() {
-            for coordinates in [3 * i..3 * i + 2, 3 * i + 2..3 * i + 3] {
-                if u.stiffness <= 0.0 && u.damping <= 0.0 {
+            let bx = model.robot.module_box(i);
+            for (kind, coordinates) in [3 * i..3 * i + 2, 3 * i + 2..3 * i + 3]
+                .into_iter()
+                .enumerate()
+            {
+                let (sigma_k, sigma_d) = (bx.stiffness[kind], bx.damping[kind]);
+                if sigma_k <= 0.0 && sigma_d <= 0.0 {
                     continue;
                 }
-                for &stiffness in &ends(u.stiffness) {
-                    for &damping in &ends(u.damping) {
+                for &stiffness in &ends(sigma_k) {
+                    for &damping in &ends(sigma_d) {
                         perturbations.push(Perturbation::Elastic {
                             coordinates: coordinates.clone(),
                             stiffness,
@@ -594,10 +599,10 @@ impl RobustMargin {
                     *last = true;
                 }
             }
-            if u.mass > 0.0 {
+            if bx.mass > 0.0 {
                 for sign in [1.0, -1.0] {
                     let mut factors = vec![ModuleFactors::NOMINAL; model.n_modules()];
-                    factors[i].mass = 1.0 + sign * u.mass;
+                    factors[i].mass = 1.0 + sign * bx.mass;
                     let plant = uncertainty::scaled(&model.robot, &factors)
                         .map_err(|e| robust_error(e.to_string()))?;
                     let plant = Model::with_generated(plant, model.generated)
@@ -620,7 +625,7 @@ impl RobustMargin {
                     .map(|i| {
                         let sign = if corner & (1 << i) != 0 { 1.0 } else { -1.0 };
                         ModuleFactors {
-                            mass: 1.0 + sign * u.mass,
+                            mass: 1.0 + sign * model.robot.module_box(i).mass,
                             ..ModuleFactors::NOMINAL
                         }
                     })

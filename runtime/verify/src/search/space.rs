@@ -76,9 +76,15 @@ impl Space {
         boxed(&spec.initial_q, "initial", " [m]", Slot::InitialQ);
         boxed(&spec.initial_qd, "initial", "/dt [m/s]", Slot::InitialQd);
         if spec.parameter_errors {
-            let u = model.robot.uncertainty;
-            let fractions = [u.stiffness, u.stiffness, u.damping, u.damping, u.mass];
             for module in 0..model.robot.modules.len() {
+                let b = model.robot.module_box(module);
+                let fractions = [
+                    b.stiffness[0],
+                    b.stiffness[1],
+                    b.damping[0],
+                    b.damping[1],
+                    b.mass,
+                ];
                 for (which, (&fraction, name)) in fractions.iter().zip(FACTOR_NAMES).enumerate() {
                     if fraction > 0.0 {
                         variables.push(Variable {
