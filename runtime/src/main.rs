@@ -318,7 +318,11 @@ fn run_simulation(args: SimulateArgs, console: &mut Console) -> Result<u8, Strin
     // The exit status is the verdict on the run asked for (filtered, or with --no-filter
     // plain PD+); a comparison beside it is reported, not judged: it is there to fail.
     let verdict = judge(&main.summary.outcome(), &Limits::new(threshold));
-    console.say(&format!("verdict: {}", verdict.line()));
+    let counts = &main.summary.counts;
+    console.say(&format!(
+        "verdict: {}",
+        verdict.line_with_unproven(counts.uncertified, counts.ticks)
+    ));
     match &verdict {
         Verdict::Safe => {}
         Verdict::Unsafe(why) => eprintln!("error: unsafe run: {why}"),

@@ -126,6 +126,20 @@ impl Verdict {
     pub fn is_safe(&self) -> bool {
         *self == Verdict::Safe
     }
+
+    /// [`Verdict::line`] for a run of which `unproven` of `ticks` ticks were not proven over
+    /// their hold (the certified mode's uncertified ticks): a safe run says it was measured
+    /// so and that the guarantee leaves those ticks out (the status is the verdict's).
+    pub fn line_with_unproven(&self, unproven: usize, ticks: usize) -> String {
+        if self.is_safe() && unproven > 0 {
+            format!(
+                "safe (measured: {unproven} of {ticks} ticks were not proven over their hold, \
+                 and the guarantee does not cover those; docs/model.md §5)"
+            )
+        } else {
+            self.line()
+        }
+    }
 }
 
 /// The percentage `part / whole` with one decimal.
@@ -241,6 +255,19 @@ mod tests {
             stopped: None,
             overruns: None,
         }
+    }
+
+    /// A safe run with unproven ticks says so; other verdicts are left as they are.
+    #[test]
+    fn a_safe_line_names_the_ticks_not_proven() {
+        assert_eq!(Verdict::Safe.line_with_unproven(0, 331), "safe");
+        let line = Verdict::Safe.line_with_unproven(227, 331);
+        assert!(
+            line.starts_with("safe (measured: 227 of 331 ticks were not proven"),
+            "{line}"
+        );
+        let unsafe_run = Verdict::Unsafe("lowest barrier −1 mm".into());
+        assert_eq!(unsafe_run.line_with_unproven(227, 331), unsafe_run.line());
     }
 
     #[test]

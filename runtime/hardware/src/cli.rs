@@ -1213,7 +1213,11 @@ fn report(s: &RunSummary, limits: &VerdictLimits, console: &mut Console) {
         .map(|(id, ok)| format!("{id}:{}", if *ok { "off" } else { "unconfirmed" }))
         .collect();
     console.say(&format!("torque: {}", off.join(" ")));
-    console.say(&format!("verdict: {}", s.verdict(limits).line()));
+    console.say(&format!(
+        "verdict: {}",
+        s.verdict(limits)
+            .line_with_unproven(s.uncertified as usize, s.ticks as usize)
+    ));
 }
 
 #[cfg(test)]

@@ -626,5 +626,13 @@ fn unproven_ticks_are_counted_per_reason() {
         )),
         "{stdout}"
     );
+    // The verdict is what was measured (exit 0), and says the proof left those ticks out.
+    assert_eq!(output.status.code(), Some(0), "{stdout}");
+    let verdict = format!(
+        "verdict: safe (measured: {unproven} of {} ticks were not proven over their hold, and \
+         the guarantee does not cover those; docs/model.md §5)",
+        counts["ticks"]
+    );
+    assert!(stdout.contains(&verdict), "{stdout}");
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -611,7 +611,11 @@ fn replay_command(args: ReplayArgs, console: &mut Console) -> Result<u8, String>
     console.say(&format!("wrote {}", names.join(", ")));
     // The verdict `verify` gives this run's row (the same function, the same outcome).
     let verdict = judge(&run.summary.outcome(), &Limits::new(spec.threshold));
-    console.say(&format!("verdict: {}", verdict.line()));
+    let counts = &run.summary.counts;
+    console.say(&format!(
+        "verdict: {}",
+        verdict.line_with_unproven(counts.uncertified, counts.ticks)
+    ));
     if let Verdict::Unsafe(why) = &verdict {
         eprintln!("error: unsafe run: {why}");
     }
