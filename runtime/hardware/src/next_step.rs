@@ -111,18 +111,13 @@ mod tests {
     use super::*;
 
     fn write_summary(dir: &Path, robot: &str, kind: &str) {
+        use crate::experiment::ExperimentKind;
         use crate::summary_file::{ExperimentDesign, ExperimentSummary};
         std::fs::create_dir_all(dir).unwrap();
-        let design = match kind {
-            "static" => ExperimentDesign::default(),
-            _ => ExperimentDesign::Dynamic {
-                fade: None,
-                band: None,
-                resolution: None,
-                lines_per_servo: None,
-                operating_points: None,
-            },
-        };
+        let design = ExperimentDesign::unknown(match kind {
+            "static" => ExperimentKind::Static,
+            _ => ExperimentKind::Dynamic,
+        });
         let summary = HardwareSummary {
             robot: robot.to_string(),
             hardware: true,

@@ -14,6 +14,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
+use crate::experiment::ExperimentKind;
+
 /// The file's name in a run's directory.
 pub const FILE_NAME: &str = "summary.json";
 
@@ -215,18 +217,33 @@ pub enum ExperimentDesign {
 
 impl Default for ExperimentDesign {
     fn default() -> ExperimentDesign {
-        ExperimentDesign::Static {
-            step_time: None,
-            settle_time: None,
-            ramp: None,
-            quiet_window: None,
-            rest_window: None,
-            rest_threshold: None,
-        }
+        ExperimentDesign::unknown(ExperimentKind::Static)
     }
 }
 
 impl ExperimentDesign {
+    /// A design of `kind` whose settings are unknown (a synthetic log's): every field
+    /// `None`, as a file without them reads back.
+    pub fn unknown(kind: ExperimentKind) -> ExperimentDesign {
+        match kind {
+            ExperimentKind::Static => ExperimentDesign::Static {
+                step_time: None,
+                settle_time: None,
+                ramp: None,
+                quiet_window: None,
+                rest_window: None,
+                rest_threshold: None,
+            },
+            ExperimentKind::Dynamic => ExperimentDesign::Dynamic {
+                fade: None,
+                band: None,
+                resolution: None,
+                lines_per_servo: None,
+                operating_points: None,
+            },
+        }
+    }
+
     /// `static` or `dynamic`, as the file names the kind.
     pub fn kind(&self) -> &'static str {
         match self {

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use crate::hardware::log::{Extra, current_columns};
 use crate::hardware::log_description::LogDescription;
 use crate::hardware::run_loop::command_wire_time;
-use crate::hardware::summary_file::{self, HardwareSummary};
+use crate::hardware::summary_file::{self, HardwareSummary, SummaryError};
 use crate::hardware_description::Hardware;
 use crate::mcap_log::{is_mcap, read_mcap};
 use crate::record::{TIME, as_strs, coordinate_names};
@@ -213,9 +213,17 @@ fn read_summary(
     expected: &Expected<'_>,
 ) -> Result<Option<ExperimentKind>, IdentifyError> {
     let path = dir.join(summary_file::FILE_NAME);
-    let summary = HardwareSummary::read(dir).map_err(|error| IdentifyError::Io {
-        file: path.clone(),
-        message: error.to_string(),
+    // (The summary's error names its file; it is said once.)
+    let summary = HardwareSummary::read(dir).map_err(|error| match error {
+        SummaryError::Io { file, message } => IdentifyError::Io { file, message },
+        SummaryError::Format {
+            file,
+            line,
+            message,
+        } => IdentifyError::Io {
+            file,
+            message: format!("line {line}: {message}"),
+        },
     })?;
     match summary {
         Some(summary) => summary_kind(&summary, &path, expected),

@@ -335,16 +335,10 @@ pub fn write_log(
     // got (a bus, deadlines, a verdict), which reads back as the defaults.
     let experiment = run.kind.map(|kind| ExperimentSummary {
         synthetic: true,
-        design: match kind {
-            ExperimentKind::Static => ExperimentDesign::default(),
-            ExperimentKind::Dynamic => ExperimentDesign::Dynamic {
-                fade: None,
-                band: None,
-                resolution: None,
-                lines_per_servo: None,
-                operating_points: None,
-            },
-        },
+        design: ExperimentDesign::unknown(match kind {
+            ExperimentKind::Static => crate::hardware::experiment::ExperimentKind::Static,
+            ExperimentKind::Dynamic => crate::hardware::experiment::ExperimentKind::Dynamic,
+        }),
         ..ExperimentSummary::default()
     });
     let file_summary = HardwareSummary {

@@ -759,6 +759,16 @@ fn bad_logs_are_refused_naming_file_line_and_column_and_nothing_is_written() {
         "{error}"
     );
 
+    // A summary.json with a field of the wrong type: its file, line and field, once.
+    let dir = out_dir("bad-summary");
+    let log = edited_log(&dir, same, |json| {
+        json.replacen("\"ticks\": ", "\"ticks\": \"many\", \"was\": ", 1)
+    });
+    let error = refused(&dir, vec![log]);
+    assert!(error.contains("summary.json: line "), "{error}");
+    assert!(error.contains("ticks"), "{error}");
+    assert_eq!(error.matches("summary.json").count(), 1, "{error}");
+
     // Too short: the first 0.15 s.
     let dir = out_dir("bad-short");
     let log = edited_log(&dir, same, keep);
